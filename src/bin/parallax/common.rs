@@ -1,0 +1,66 @@
+//! Plumbing every subcommand shares: `--report`, `--quiet`, progress bars.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use parallax::trace::Trace;
+
+/// Flags every subcommand takes.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct CommonArgs {
+    /// Write the trace of this run as JSON (stages, times, warnings, peak memory) to FILE.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+    /// No progress bars or informational output on stderr.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+impl CommonArgs {
+    /// Writes the report when `--report` was given, and prints the trace's warnings unless quiet.
+    pub fn finish(&self, trace: &Trace) -> parallax::Result<()> {
+        if !self.quiet {
+            for w in trace.warnings() {
+                eprintln!("parallax: warning: {w}");
+            }
+        }
+        if let Some(path) = &self.report {
+            std::fs::write(path, trace.report().to_json())
+                .map_err(|e| parallax::Error::io(path, e))?;
+        }
+        Ok(())
+    }
+
+    /// A spinner with a message on stderr; hidden when quiet or when stderr is not a terminal.
+    pub fn spinner(&self, message: &str) -> ProgressBar {
+        let bar = if self.quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr())
+        };
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} {msg} [{elapsed}]")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        bar.set_message(message.to_string());
+        bar.enable_steady_tick(Duration::from_millis(120));
+        bar
+    }
+
+    /// A progress bar of `len` steps (for subcommands with countable work) on stderr; hidden when quiet or when stderr is not a terminal.
+    #[allow(dead_code)] // used by the subcommands of the stage issues
+    pub fn progress(&self, len: u64, message: &str) -> ProgressBar {
+        let bar = if self.quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr())
+        };
+        bar.set_style(
+            ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} [{elapsed}<{eta}]")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar.set_message(message.to_string());
+        bar
+    }
+}

@@ -1,0 +1,195 @@
+//! What a call did: every product computed, reused or skipped, with its time and why; and the JSON
+//! report (`--report FILE.json`, `plx_scene_report`) that tools and benchmarks read.
+//!
+//! The report is a stable interface. Its shape:
+//! ```json
+//! {
+//!   "version": "0.1.0",
+//!   "stages": [ {"name": "stereo", "status": "computed", "ms": 12.5, "why": "stereo pair changed"} ],
+//!   "warnings": ["…"],
+//!   "peak_rss_mb": 123.4,
+//!   "total_ms": 20.1
+//! }
+//! ```
+//! `stages` are in the order they finished (a product after the products it needs; sub-stages such
+//! as `stereo.cost` right after their stage); `status` is one of `computed`, `reused`, `skipped`;
+//! `ms` is wall-clock milliseconds (0 for reused and skipped); `peak_rss_mb` is the process's peak
+//! resident memory in MiB where the OS reports it (Linux), else `null`.
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+/// What happened to one product during a call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StageStatus {
+    /// Computed in this call.
+    Computed,
+    /// Taken from the cache: none of its inputs changed.
+    Reused,
+    /// Not needed by what was asked for.
+    Skipped,
+}
+
+/// One line of the trace.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StageRecord {
+    /// Product or sub-stage name, e.g. `stereo` or `stereo.aggregate`.
+    pub name: String,
+    /// Computed, reused or skipped.
+    pub status: StageStatus,
+    /// Wall-clock time in milliseconds (0 unless computed).
+    pub ms: f64,
+    /// Why: which input changed, or why it was not needed.
+    pub why: String,
+}
+
+/// The record of one call into a [`crate::scene::Scene`] (or one CLI command).
+#[derive(Debug, Clone, Default)]
+pub struct Trace {
+    stages: Vec<StageRecord>,
+    warnings: Vec<String>,
+    started: Option<Instant>,
+}
+
+impl Trace {
+    /// An empty trace whose clock starts now.
+    pub fn new() -> Self {
+        Trace {
+            stages: Vec::new(),
+            warnings: Vec::new(),
+            started: Some(Instant::now()),
+        }
+    }
+
+    /// Adds a record.
+    pub fn record(
+        &mut self,
+        name: impl Into<String>,
+        status: StageStatus,
+        ms: f64,
+        why: impl Into<String>,
+    ) {
+        self.stages.push(StageRecord {
+            name: name.into(),
+            status,
+            ms,
+            why: why.into(),
+        });
+    }
+
+    /// Runs `f`, records it as computed with its time, and returns its value.
+    pub fn time<T>(&mut self, name: &str, why: &str, f: impl FnOnce(&mut Trace) -> T) -> T {
+        let start = Instant::now();
+        let value = f(self);
+        self.record(
+            name,
+            StageStatus::Computed,
+            start.elapsed().as_secs_f64() * 1e3,
+            why,
+        );
+        value
+    }
+
+    /// Adds a warning (a repaired input, a fallback taken, …).
+    pub fn warn(&mut self, message: impl Into<String>) {
+        self.warnings.push(message.into());
+    }
+
+    /// Records so far.
+    pub fn stages(&self) -> &[StageRecord] {
+        &self.stages
+    }
+
+    /// Warnings so far.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// The first record with this name, if any.
+    pub fn stage(&self, name: &str) -> Option<&StageRecord> {
+        self.stages.iter().find(|s| s.name == name)
+    }
+
+    /// Appends another trace's records and warnings.
+    pub fn extend(&mut self, other: Trace) {
+        self.stages.extend(other.stages);
+        self.warnings.extend(other.warnings);
+    }
+
+    /// The report of this trace (see the module documentation for its shape).
+    pub fn report(&self) -> Report {
+        Report {
+            version: crate::VERSION.to_string(),
+            stages: self.stages.clone(),
+            warnings: self.warnings.clone(),
+            peak_rss_mb: peak_rss_mb(),
+            total_ms: self
+                .started
+                .map(|s| s.elapsed().as_secs_f64() * 1e3)
+                .unwrap_or(0.0),
+        }
+    }
+}
+
+/// The JSON report of a call (see the module documentation).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    /// Parallax version that wrote it.
+    pub version: String,
+    /// Every stage in the order it finished.
+    pub stages: Vec<StageRecord>,
+    /// Warnings raised.
+    pub warnings: Vec<String>,
+    /// Peak resident memory of the process in MiB, when the OS reports it.
+    pub peak_rss_mb: Option<f64>,
+    /// Wall-clock time of the whole call in milliseconds.
+    pub total_ms: f64,
+}
+
+impl Report {
+    /// Pretty-printed JSON.
+    pub fn to_json(&self) -> String {
+        // Serialising plain structs of strings and finite numbers cannot fail; NaN would become null.
+        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    }
+}
+
+/// Peak resident set size of this process in MiB (Linux `VmHWM`), or `None` where unknown.
+pub fn peak_rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn report_has_the_documented_shape() {
+        let mut t = Trace::new();
+        let v = t.time("stereo", "stereo pair changed", |t| {
+            t.record("stereo.cost", StageStatus::Computed, 1.0, "");
+            42
+        });
+        assert_eq!(v, 42);
+        t.record("mesh", StageStatus::Skipped, 0.0, "not asked for");
+        t.warn("fell back");
+        let json: serde_json::Value = serde_json::from_str(&t.report().to_json()).unwrap();
+        assert_eq!(json["version"], crate::VERSION);
+        let stages = json["stages"].as_array().unwrap();
+        assert_eq!(stages[0]["name"], "stereo.cost");
+        assert_eq!(stages[1]["name"], "stereo");
+        assert_eq!(stages[1]["status"], "computed");
+        assert_eq!(stages[2]["status"], "skipped");
+        assert!(stages[1]["ms"].as_f64().unwrap() >= 0.0);
+        assert_eq!(json["warnings"][0], "fell back");
+        assert!(json["total_ms"].as_f64().unwrap() >= 0.0);
+        if cfg!(target_os = "linux") {
+            assert!(json["peak_rss_mb"].as_f64().unwrap() > 0.0);
+        }
+    }
+}
