@@ -10,6 +10,7 @@
 //! |---|---|
 //! | [`image`] | image buffers and views, sRGB↔linear, PNG/JPEG/PFM/EXR/HDR I/O |
 //! | [`camera`] | calibration, disparity ↔ depth |
+//! | [`context`] | what scenes share: size caps, the lazily opened GPU |
 //! | [`scene`] | the demand-driven pipeline with cached products and a [`trace::Trace`] |
 //! | [`ffi`] | the C ABI (`include/parallax.h`) |
 //! | `render` (feature `gpu`) | the headless wgpu context and renderer |
@@ -17,7 +18,9 @@
 #![warn(missing_docs)]
 
 pub mod camera;
+pub mod context;
 pub mod error;
+pub mod ffi;
 
 pub mod image;
 #[cfg(feature = "gpu")]

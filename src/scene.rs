@@ -9,16 +9,10 @@
 
 use std::sync::Arc;
 
+use crate::context::Context;
 use crate::error::{Error, Result};
-use crate::image::{Image, ImageLimits, ImageView, Raster};
+use crate::image::{Image, ImageView, Raster};
 use crate::trace::{StageStatus, Trace};
-
-/// Settings shared by all scenes of one host context.
-#[derive(Debug, Clone, Default)]
-pub struct SceneConfig {
-    /// Size caps for every image the scene accepts.
-    pub limits: ImageLimits,
-}
 
 /// A value set by the host, with the version it was set at (0 = never set).
 #[derive(Debug)]
@@ -101,9 +95,12 @@ pub struct LoadedPair {
 }
 
 /// A photo's reconstruction and everything inserted into it.
-#[derive(Debug, Default)]
+///
+/// Not thread-safe for concurrent calls (`Send`, not `Sync`): use one scene from one thread at a
+/// time; several scenes may share one [`Context`].
+#[derive(Debug)]
 pub struct Scene {
-    config: SceneConfig,
+    context: Arc<Context>,
     next_version: u64,
     stereo_pair: Input<StereoPair>,
     calibration: Input<crate::camera::StereoCalibration>,
@@ -112,17 +109,21 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// An empty scene.
-    pub fn new(config: SceneConfig) -> Self {
+    /// An empty scene in `context`.
+    pub fn new(context: Arc<Context>) -> Self {
         Scene {
-            config,
-            ..Default::default()
+            context,
+            next_version: 0,
+            stereo_pair: Input::default(),
+            calibration: Input::default(),
+            loaded_pair: Product::default(),
+            last_trace: Trace::new(),
         }
     }
 
-    /// The configuration the scene was made with.
-    pub fn config(&self) -> &SceneConfig {
-        &self.config
+    /// The context the scene belongs to.
+    pub fn context(&self) -> &Arc<Context> {
+        &self.context
     }
 
     fn bump(&mut self) -> u64 {
@@ -136,7 +137,7 @@ impl Scene {
     /// `SizeMismatch` when the views differ in size; `InvalidArgument` for an empty view;
     /// `TooLarge` over the configured pixel cap. On error the scene is unchanged.
     pub fn set_stereo_pair(&mut self, left: &ImageView, right: &ImageView) -> Result<()> {
-        let limits = self.config.limits;
+        let limits = self.context.limits();
         limits.check("left image", left.width() as u64, left.height() as u64)?;
         limits.check("right image", right.width() as u64, right.height() as u64)?;
         if (left.width(), left.height()) != (right.width(), right.height()) {
@@ -223,7 +224,18 @@ impl Scene {
 mod tests {
     use super::*;
     use crate::camera::StereoCalibration;
-    use crate::image::PixelFormat;
+    use crate::context::ContextOptions;
+    use crate::image::{ImageLimits, PixelFormat};
+
+    fn scene_with(limits: ImageLimits) -> Scene {
+        Scene::new(Arc::new(
+            Context::new(ContextOptions {
+                limits,
+                ..Default::default()
+            })
+            .unwrap(),
+        ))
+    }
 
     fn gray(w: u32, h: u32, seed: u8) -> Image {
         Image::from_bytes(
@@ -239,7 +251,7 @@ mod tests {
 
     #[test]
     fn product_is_reused_until_its_own_input_changes() {
-        let mut scene = Scene::new(SceneConfig::default());
+        let mut scene = scene_with(ImageLimits::default());
         let (l, r) = (gray(8, 4, 0), gray(8, 4, 1));
         scene.set_stereo_pair(&l.view(), &r.view()).unwrap();
         let first = scene.loaded_pair().unwrap();
@@ -271,9 +283,7 @@ mod tests {
 
     #[test]
     fn bad_pairs_are_rejected_and_leave_the_scene_unchanged() {
-        let mut scene = Scene::new(SceneConfig {
-            limits: ImageLimits { max_pixels: 32 },
-        });
+        let mut scene = scene_with(ImageLimits { max_pixels: 32 });
         let ok = gray(8, 4, 0);
         assert!(matches!(
             scene.set_stereo_pair(&ok.view(), &gray(4, 8, 0).view()),
@@ -289,7 +299,7 @@ mod tests {
 
     #[test]
     fn identical_views_raise_a_warning() {
-        let mut scene = Scene::new(SceneConfig::default());
+        let mut scene = scene_with(ImageLimits::default());
         let l = gray(8, 4, 3);
         scene.set_stereo_pair(&l.view(), &l.view()).unwrap();
         scene.loaded_pair().unwrap();

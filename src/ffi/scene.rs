@@ -1,0 +1,92 @@
+//! `plx_scene`: one photo's reconstruction and what is inserted into it.
+
+use std::sync::Arc;
+
+use super::boundary::{guard, null_argument};
+use super::context::{plx_context, ContextHandle};
+use super::handle::{Handle, Kind, GLOBAL_ERROR};
+use super::image::{plx_image, view};
+use crate::error::Status;
+use crate::scene::Scene;
+
+/// Opaque. Not thread-safe: call functions on one scene from one thread at a time (any thread).
+/// Views it returns stay valid until the next call that changes the scene.
+pub struct plx_scene {
+    _private: [u8; 0],
+}
+
+pub(crate) type SceneHandle = Handle<Scene>;
+
+/// Creates an empty scene in `context`.
+///
+/// # Safety
+/// `context` is a live context; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_new(
+    context: *const plx_context,
+    out: *mut *mut plx_scene,
+) -> Status {
+    guard(&GLOBAL_ERROR, || {
+        if out.is_null() {
+            return Err(null_argument("out"));
+        }
+        let context = ContextHandle::from_ptr(context.cast(), Kind::Context, "context")?;
+        let scene = Scene::new(Arc::clone(&context.value));
+        *out = SceneHandle::into_raw(Kind::Scene, scene).cast();
+        Ok(())
+    })
+}
+
+/// Frees a scene (NULL allowed).
+///
+/// # Safety
+/// `scene` is NULL or a live scene not used by another thread during the call.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_free(scene: *mut plx_scene) {
+    let _ = std::panic::catch_unwind(|| SceneHandle::free(scene.cast(), Kind::Scene));
+}
+
+/// Borrows the scene handle, reporting a NULL or foreign pointer in the global error slot.
+unsafe fn with_scene(
+    scene: *mut plx_scene,
+    body: impl FnOnce(&mut Scene) -> Result<(), super::boundary::CallError>,
+) -> Status {
+    let handle = match std::panic::catch_unwind(|| {
+        SceneHandle::from_mut_ptr(scene.cast(), Kind::Scene, "scene")
+    }) {
+        Ok(Ok(h)) => h,
+        Ok(Err(e)) => return guard(&GLOBAL_ERROR, || Err(e)),
+        Err(_) => return Status::Panic,
+    };
+    let Handle { header, value } = handle;
+    guard(&header.error, || body(value))
+}
+
+/// Sets the rectified stereo pair (left and right views of equal size, any `plx_pixel_format`).
+/// Both are copied in. Errors: `NULL_ARGUMENT`, `INVALID_ARGUMENT` (zero size, stride shorter than
+/// a row, unknown format), `SIZE_MISMATCH` (views of different sizes), `TOO_LARGE` (over the
+/// context's pixel cap). On error the scene is unchanged.
+///
+/// # Safety
+/// `scene` is a live scene; `left` and `right` point to valid descriptors of readable memory.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_set_stereo_pair(
+    scene: *mut plx_scene,
+    left: *const plx_image,
+    right: *const plx_image,
+) -> Status {
+    with_scene(scene, |scene| {
+        let left = view(left, "left")?;
+        let right = view(right, "right")?;
+        scene.set_stereo_pair(&left, &right)?;
+        Ok(())
+    })
+}
+
+#[cfg(feature = "test-hooks")]
+pub(crate) unsafe fn with_scene_for_tests(scene: *mut plx_scene, body: impl FnOnce()) -> Status {
+    with_scene(scene, |_| {
+        body();
+        Ok(())
+    })
+}
