@@ -992,6 +992,32 @@ mod tests {
     }
 
     #[test]
+    fn radiance_hdr_is_read_as_linear_floats() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.hdr");
+        let pixels = [
+            image::Rgb([0.5f32, 8.0, 1000.0]),
+            image::Rgb([0.0, 0.25, 2.0]),
+        ];
+        let file = std::fs::File::create(&path).unwrap();
+        image::codecs::hdr::HdrEncoder::new(file)
+            .encode(&pixels, 2, 1)
+            .unwrap();
+        let back = Raster::<[f32; 3]>::read_hdr(&path, &ImageLimits::default()).unwrap();
+        assert_eq!(back.width(), 2);
+        // RGBE shares one exponent: precision is about 1 % of the brightest channel.
+        for (got, want) in back.pixels().iter().zip(pixels.iter()) {
+            let scale = want.0.iter().fold(0.0f32, |a, b| a.max(*b));
+            for c in 0..3 {
+                assert!(
+                    (got[c] - want.0[c]).abs() <= 0.01 * scale,
+                    "{got:?} vs {want:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn exr_round_trip_keeps_hdr_values() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("a.exr");
