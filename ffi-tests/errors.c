@@ -64,6 +64,17 @@ int main(void) {
     CHECK_STATUS(scene, plx_scene_set_stereo_pair(scene, &big, &big), PLX_STATUS_TOO_LARGE);
     CHECK_MESSAGE(scene, "cap");
 
+    /* Calibration with a negative baseline or a NaN focal length. */
+    plx_calibration calib = {500.0, 4.0, 4.0, -0.1, 0.0, 0};
+    CHECK_STATUS(scene, plx_scene_set_calibration(scene, &calib), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "baseline");
+    calib.baseline_m = 0.1;
+    calib.focal_px = 0.0 / 0.0;
+    CHECK_STATUS(scene, plx_scene_set_calibration(scene, &calib), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "focal");
+    CHECK_STATUS(scene, plx_scene_set_calibration(scene, NULL), PLX_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(scene, plx_scene_report(scene, NULL, 4, NULL), PLX_STATUS_NULL_ARGUMENT);
+
     /* Message truncation works like snprintf and reports the full size. */
     char tiny[4];
     size_t needed = 0;

@@ -43,6 +43,21 @@ int main(void) {
     plx_image gray = {pixels, 5, 3, 24, PLX_PIXEL_FORMAT_GRAY8};
     CHECK_STATUS(scene, plx_scene_set_stereo_pair(scene, &gray, &gray), PLX_STATUS_OK);
 
+    /* Calibration: accepted when sane, rejected with a message naming the value otherwise. */
+    plx_calibration calib = {500.0, 2.5, 1.5, 0.1, 0.0, 4};
+    CHECK_STATUS(scene, plx_scene_set_calibration(scene, &calib), PLX_STATUS_OK);
+
+    /* The report is JSON with the documented keys, even before any product was asked for. */
+    size_t report_len = 0;
+    CHECK_STATUS(scene, plx_scene_report(scene, NULL, 0, &report_len), PLX_STATUS_OK);
+    CHECK(report_len > 10);
+    char *report = malloc(report_len);
+    CHECK_STATUS(scene, plx_scene_report(scene, report, report_len, NULL), PLX_STATUS_OK);
+    CHECK(strstr(report, "\"version\": \"" PLX_VERSION_STRING "\"") != NULL);
+    CHECK(strstr(report, "\"stages\"") != NULL);
+    CHECK(strlen(report) + 1 == report_len);
+    free(report);
+
     /* No failure yet on this scene: the message is empty. */
     char msg[16] = "untouched";
     size_t needed = 0;

@@ -125,6 +125,22 @@ typedef struct plx_image {
   uint32_t format;
 } plx_image;
 
+// Calibration of a rectified pair, for `plx_scene_set_calibration`.
+typedef struct plx_calibration {
+  // Focal length in pixels (> 0).
+  double focal_px;
+  // Principal point of the left view, pixels from the left edge.
+  double cx;
+  // Principal point of the left view, pixels from the top edge.
+  double cy;
+  // Distance between the camera centres, metres (> 0).
+  double baseline_m;
+  // x difference of the principal points, right minus left, pixels (Middlebury `doffs`).
+  double doffs;
+  // Largest disparity worth searching, pixels; 0 = unknown.
+  uint32_t max_disparity;
+} plx_calibration;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -173,6 +189,24 @@ void plx_scene_free(struct plx_scene *scene);
 enum plx_status plx_scene_set_stereo_pair(struct plx_scene *scene,
                                           const struct plx_image *left,
                                           const struct plx_image *right);
+
+// Sets the calibration of the stereo pair (used to turn disparity into metres). Errors:
+// `INVALID_ARGUMENT` for a non-finite or non-positive focal length or baseline, non-finite
+// offsets. On error the scene is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `calibration` points to a valid `plx_calibration`.
+enum plx_status plx_scene_set_calibration(struct plx_scene *scene,
+                                          const struct plx_calibration *calibration);
+
+// Copies the JSON report of the scene's last call that computed or fetched a product (stages
+// computed, reused or skipped with their times, warnings, peak memory; the format is documented
+// in the README) into `buf`, like `plx_last_error_message`: truncated to `len - 1` bytes plus a
+// NUL, with the full size including the NUL in `*needed` (if not NULL).
+//
+// # Safety
+// `scene` is a live scene; `buf` points to `len` writable bytes (may be NULL when `len` is 0).
+enum plx_status plx_scene_report(struct plx_scene *scene, char *buf, size_t len, size_t *needed);
 
 // A static, NUL-terminated description of `status` (never NULL; unknown values give
 // "unknown status"). Thread-safe.

@@ -117,7 +117,11 @@ impl Scene {
             stereo_pair: Input::default(),
             calibration: Input::default(),
             loaded_pair: Product::default(),
-            last_trace: Trace::new(),
+            last_trace: {
+                let mut t = Trace::new();
+                t.finish();
+                t
+            },
         }
     }
 
@@ -188,6 +192,7 @@ impl Scene {
     pub fn loaded_pair(&mut self) -> Result<Arc<LoadedPair>> {
         let mut trace = Trace::new();
         let result = self.loaded_pair_traced(&mut trace);
+        trace.finish();
         self.last_trace = trace;
         result
     }

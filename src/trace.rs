@@ -51,6 +51,9 @@ pub struct Trace {
     stages: Vec<StageRecord>,
     warnings: Vec<String>,
     started: Option<Instant>,
+    /// Total time and peak memory, frozen by [`Trace::finish`] so the report of a past call does
+    /// not change when read twice.
+    finished: Option<(f64, Option<f64>)>,
 }
 
 impl Trace {
@@ -60,7 +63,19 @@ impl Trace {
             stages: Vec::new(),
             warnings: Vec::new(),
             started: Some(Instant::now()),
+            finished: None,
         }
+    }
+
+    /// Ends the call: freezes its total time and the peak memory seen so far.
+    pub fn finish(&mut self) {
+        self.finished = Some((self.elapsed_ms(), peak_rss_mb()));
+    }
+
+    fn elapsed_ms(&self) -> f64 {
+        self.started
+            .map(|s| s.elapsed().as_secs_f64() * 1e3)
+            .unwrap_or(0.0)
     }
 
     /// Adds a record.
@@ -120,15 +135,15 @@ impl Trace {
 
     /// The report of this trace (see the module documentation for its shape).
     pub fn report(&self) -> Report {
+        let (total_ms, peak_rss_mb) = self
+            .finished
+            .unwrap_or_else(|| (self.elapsed_ms(), peak_rss_mb()));
         Report {
             version: crate::VERSION.to_string(),
             stages: self.stages.clone(),
             warnings: self.warnings.clone(),
-            peak_rss_mb: peak_rss_mb(),
-            total_ms: self
-                .started
-                .map(|s| s.elapsed().as_secs_f64() * 1e3)
-                .unwrap_or(0.0),
+            peak_rss_mb,
+            total_ms,
         }
     }
 }
@@ -191,5 +206,14 @@ mod tests {
         if cfg!(target_os = "linux") {
             assert!(json["peak_rss_mb"].as_f64().unwrap() > 0.0);
         }
+    }
+
+    #[test]
+    fn a_finished_trace_reports_the_same_every_time() {
+        let mut t = Trace::new();
+        t.finish();
+        let first = t.report().to_json();
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        assert_eq!(first, t.report().to_json());
     }
 }

@@ -90,3 +90,73 @@ pub(crate) unsafe fn with_scene_for_tests(scene: *mut plx_scene, body: impl FnOn
         Ok(())
     })
 }
+
+/// Calibration of a rectified pair, for `plx_scene_set_calibration`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct plx_calibration {
+    /// Focal length in pixels (> 0).
+    pub focal_px: f64,
+    /// Principal point of the left view, pixels from the left edge.
+    pub cx: f64,
+    /// Principal point of the left view, pixels from the top edge.
+    pub cy: f64,
+    /// Distance between the camera centres, metres (> 0).
+    pub baseline_m: f64,
+    /// x difference of the principal points, right minus left, pixels (Middlebury `doffs`).
+    pub doffs: f64,
+    /// Largest disparity worth searching, pixels; 0 = unknown.
+    pub max_disparity: u32,
+}
+
+/// Sets the calibration of the stereo pair (used to turn disparity into metres). Errors:
+/// `INVALID_ARGUMENT` for a non-finite or non-positive focal length or baseline, non-finite
+/// offsets. On error the scene is unchanged.
+///
+/// # Safety
+/// `scene` is a live scene; `calibration` points to a valid `plx_calibration`.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_set_calibration(
+    scene: *mut plx_scene,
+    calibration: *const plx_calibration,
+) -> Status {
+    with_scene(scene, |scene| {
+        if calibration.is_null() {
+            return Err(null_argument("calibration"));
+        }
+        let c = &*calibration;
+        scene.set_calibration(crate::camera::StereoCalibration {
+            focal_px: c.focal_px,
+            cx: c.cx,
+            cy: c.cy,
+            baseline_m: c.baseline_m,
+            doffs: c.doffs,
+            max_disparity: (c.max_disparity > 0).then_some(c.max_disparity),
+        })?;
+        Ok(())
+    })
+}
+
+/// Copies the JSON report of the scene's last call that computed or fetched a product (stages
+/// computed, reused or skipped with their times, warnings, peak memory; the format is documented
+/// in the README) into `buf`, like `plx_last_error_message`: truncated to `len - 1` bytes plus a
+/// NUL, with the full size including the NUL in `*needed` (if not NULL).
+///
+/// # Safety
+/// `scene` is a live scene; `buf` points to `len` writable bytes (may be NULL when `len` is 0).
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_report(
+    scene: *mut plx_scene,
+    buf: *mut std::ffi::c_char,
+    len: usize,
+    needed: *mut usize,
+) -> Status {
+    with_scene(scene, |scene| {
+        if buf.is_null() && len > 0 {
+            return Err(null_argument("buf"));
+        }
+        let json = scene.last_trace().report().to_json();
+        super::status::copy_c_string(&json, buf, len, needed);
+        Ok(())
+    })
+}

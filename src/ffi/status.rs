@@ -82,18 +82,26 @@ pub unsafe extern "C" fn plx_last_error_message(
             return Err(null_argument("buf"));
         }
         let slot = error_slot_of(handle as *const HandleHeader)?;
-        let message = slot.get();
-        let bytes = message.as_bytes();
-        if !needed.is_null() {
-            *needed = bytes.len() + 1;
-        }
-        if len > 0 {
-            let n = bytes.len().min(len - 1);
-            std::ptr::copy_nonoverlapping(bytes.as_ptr(), buf.cast::<u8>(), n);
-            *buf.add(n) = 0;
-        }
+        copy_c_string(&slot.get(), buf, len, needed);
         Ok(())
     })
+}
+
+/// `snprintf`-like copy of `text` into `buf` (truncated, NUL-terminated when `len > 0`), writing
+/// the full size including the NUL to `*needed` when `needed` is not NULL.
+///
+/// # Safety
+/// `buf` points to `len` writable bytes; `needed` is NULL or writable.
+pub(crate) unsafe fn copy_c_string(text: &str, buf: *mut c_char, len: usize, needed: *mut usize) {
+    let bytes = text.as_bytes();
+    if !needed.is_null() {
+        *needed = bytes.len() + 1;
+    }
+    if len > 0 {
+        let n = bytes.len().min(len - 1);
+        std::ptr::copy_nonoverlapping(bytes.as_ptr(), buf.cast::<u8>(), n);
+        *buf.add(n) = 0;
+    }
 }
 
 #[cfg(test)]
