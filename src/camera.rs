@@ -178,7 +178,6 @@ fn parse_matrix(value: &str) -> Result<[f64; 9]> {
     })
 }
 
-
 /// Horizontal field of view assumed when nothing is known about the camera: 60°, between a phone's
 /// main camera (about 65–70°) and a typical compact zoom; depth from it is only right up to scale.
 pub const DEFAULT_HORIZONTAL_FOV_DEG: f32 = 60.0;
@@ -691,7 +690,10 @@ mod camera_model_tests {
                     ndc.z
                 };
                 let expected = enc.encode(z, c.near, c.far);
-                assert!((window - expected).abs() < 1e-5, "{enc:?}: {window} vs {expected}");
+                assert!(
+                    (window - expected).abs() < 1e-5,
+                    "{enc:?}: {window} vs {expected}"
+                );
             }
         }
     }
@@ -766,9 +768,9 @@ mod camera_model_tests {
         let ulp = (f32::from_bits(encoded.to_bits() + 1) - encoded) as f64;
         let slope = match enc {
             DepthEncoding::LinearMeters => 1.0,
-            DepthEncoding::ReversedZ | DepthEncoding::OpenGlWindow | DepthEncoding::WebGpuZeroToOne => {
-                f * n / ((f - n) * z * z)
-            }
+            DepthEncoding::ReversedZ
+            | DepthEncoding::OpenGlWindow
+            | DepthEncoding::WebGpuZeroToOne => f * n / ((f - n) * z * z),
         };
         // Depth itself is stored in f32 before encoding: one more relative ulp of z.
         1.5 * ulp / slope / z + 2.0 * f32::EPSILON as f64
@@ -832,7 +834,11 @@ mod camera_model_tests {
     fn missing_depth_encodes_as_empty_and_decodes_as_none() {
         for enc in DepthEncoding::ALL {
             for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.0, -3.0] {
-                assert_eq!(enc.encode(bad, 0.1, 10.0), enc.empty_value(), "{enc:?} {bad}");
+                assert_eq!(
+                    enc.encode(bad, 0.1, 10.0),
+                    enc.empty_value(),
+                    "{enc:?} {bad}"
+                );
             }
             assert!(enc.decode(enc.empty_value(), 0.1, 10.0).is_nan());
             assert!(enc.decode(f32::NAN, 0.1, 10.0).is_nan());
@@ -841,7 +847,10 @@ mod camera_model_tests {
         assert_eq!(DepthEncoding::WebGpuZeroToOne.encode(1e30, 0.1, 10.0), 1.0);
         assert_eq!(DepthEncoding::ReversedZ.encode(1e-30, 0.1, 10.0), 1.0);
         let depth = Raster::from_vec(2, 1, vec![1.0, f32::NAN]);
-        let c = Camera::from_focal(100.0, 2, 1).unwrap().with_clip(0.5, 4.0).unwrap();
+        let c = Camera::from_focal(100.0, 2, 1)
+            .unwrap()
+            .with_clip(0.5, 4.0)
+            .unwrap();
         let buf = depth_buffer(&depth, &c, DepthEncoding::ReversedZ);
         assert!((buf.pixels()[0] - 0.5 * 3.0 / 3.5).abs() < 1e-6);
         assert_eq!(buf.pixels()[1], 0.0);

@@ -35,6 +35,14 @@ impl Ray {
         }
     }
 
+    /// obvhs' ray. A direction component of −0.0 becomes +0.0: obvhs derives the traversal
+    /// octant and the inverse direction from the sign bits separately, and a negative zero made
+    /// axis-aligned rays (e.g. a host's ray straight down) miss everything.
+    fn to_obvhs(&self) -> obvhs::ray::Ray {
+        let direction = self.direction + Vec3::ZERO;
+        obvhs::ray::Ray::new(self.origin.into(), direction.into(), 0.0, self.t_max)
+    }
+
     fn is_valid(&self) -> bool {
         self.origin.is_finite()
             && self.direction.is_finite()
@@ -151,7 +159,7 @@ impl Bvh {
         if !ray.is_valid() {
             return None;
         }
-        let r = obvhs::ray::Ray::new(ray.origin.into(), ray.direction.into(), 0.0, ray.t_max);
+        let r = ray.to_obvhs();
         let mut hit = RayHit::none();
         let found = bvh.ray_traverse(r, &mut hit, |r, id| {
             self.triangles[bvh.primitive_indices[id] as usize].intersect(r)
@@ -198,7 +206,7 @@ impl Bvh {
         if !ray.is_valid() {
             return false;
         }
-        let r = obvhs::ray::Ray::new(ray.origin.into(), ray.direction.into(), 0.0, ray.t_max);
+        let r = ray.to_obvhs();
         !bvh.ray_traverse_miss(r, |r, id| {
             self.triangles[bvh.primitive_indices[id] as usize].intersect(r)
         })
@@ -249,17 +257,27 @@ mod tests {
         let n = Vec3::new(0.2, 0.6, 0.8).normalize();
         let d = -2.5; // n·p = d
         let depth = Raster::from_fn(120, 90, |x, y| {
-            let dir = camera.unproject(x as f32 + 0.5, y as f32 + 0.5, 1.0).unwrap();
+            let dir = camera
+                .unproject(x as f32 + 0.5, y as f32 + 0.5, 1.0)
+                .unwrap();
             d / n.dot(dir)
         });
         let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default()).unwrap();
         let bvh = Bvh::new(&mesh);
-        for pixel in [Vec2::new(60.3, 45.7), Vec2::new(10.0, 80.2), Vec2::new(111.9, 3.1)] {
+        for pixel in [
+            Vec2::new(60.3, 45.7),
+            Vec2::new(10.0, 80.2),
+            Vec2::new(111.9, 3.1),
+        ] {
             let hit = pick(&bvh, &camera, pixel).unwrap();
             let dir = camera.ray_direction(pixel.x, pixel.y);
             let t = d / n.dot(dir);
             let truth = dir * t;
-            assert!((hit.point - truth).length() < 1e-4 * t, "{} vs {truth}", hit.point);
+            assert!(
+                (hit.point - truth).length() < 1e-4 * t,
+                "{} vs {truth}",
+                hit.point
+            );
             assert!((hit.t - t).abs() < 1e-4 * t);
             assert!(hit.normal.angle_between(n).to_degrees() < 0.05);
             assert!(hit.geometric_normal.angle_between(n).to_degrees() < 0.05);
@@ -281,9 +299,18 @@ mod tests {
             t_max: 5.0,
         };
         assert!(bvh.occluded(&toward_wall));
-        assert!(!bvh.occluded(&Ray { t_max: 0.9, ..toward_wall }));
-        assert!(!bvh.occluded(&Ray { direction: Vec3::Z, ..toward_wall }));
-        assert!(!bvh.occluded(&Ray { direction: Vec3::ZERO, ..toward_wall }));
+        assert!(!bvh.occluded(&Ray {
+            t_max: 0.9,
+            ..toward_wall
+        }));
+        assert!(!bvh.occluded(&Ray {
+            direction: Vec3::Z,
+            ..toward_wall
+        }));
+        assert!(!bvh.occluded(&Ray {
+            direction: Vec3::ZERO,
+            ..toward_wall
+        }));
         let rays: Vec<Ray> = (0..200)
             .map(|i| {
                 let a = i as f32 * 0.05;
@@ -299,6 +326,10 @@ mod tests {
                 assert!((h.point.z + 2.0).abs() < 1e-5);
             }
         }
+        // Axis-aligned rays with negative-zero components (a host's ray straight down).
+        let straight = Ray::new(Vec3::new(0.1, 0.2, 0.0), Vec3::new(-0.0, -0.0, -1.0));
+        assert!(bvh.closest_hit(&straight).is_some());
+        assert!(bvh.occluded(&straight));
         let empty = Bvh::from_triangles(&[]);
         assert!(empty.closest_hit(&toward_wall).is_none());
         assert!(!empty.occluded(&toward_wall));
@@ -308,14 +339,24 @@ mod tests {
     fn closest_hit_takes_the_nearer_of_two_layers() {
         let quad = |z: f32| {
             [
-                [Vec3::new(-1.0, -1.0, z), Vec3::new(1.0, -1.0, z), Vec3::new(1.0, 1.0, z)],
-                [Vec3::new(-1.0, -1.0, z), Vec3::new(1.0, 1.0, z), Vec3::new(-1.0, 1.0, z)],
+                [
+                    Vec3::new(-1.0, -1.0, z),
+                    Vec3::new(1.0, -1.0, z),
+                    Vec3::new(1.0, 1.0, z),
+                ],
+                [
+                    Vec3::new(-1.0, -1.0, z),
+                    Vec3::new(1.0, 1.0, z),
+                    Vec3::new(-1.0, 1.0, z),
+                ],
             ]
         };
         let mut tris = quad(-3.0).to_vec();
         tris.extend(quad(-2.0));
         let bvh = Bvh::from_triangles(&tris);
-        let hit = bvh.closest_hit(&Ray::new(Vec3::ZERO, Vec3::new(0.1, 0.1, -1.0))).unwrap();
+        let hit = bvh
+            .closest_hit(&Ray::new(Vec3::ZERO, Vec3::new(0.1, 0.1, -1.0)))
+            .unwrap();
         assert!((hit.t - 2.0).abs() < 1e-5);
         assert!((hit.geometric_normal - Vec3::Z).length() < 1e-6);
     }

@@ -83,7 +83,11 @@ pub fn write_mesh_ply(mesh: &SceneMesh, path: impl AsRef<Path>) -> Result<()> {
     for k in 0..mesh.positions.len() {
         let uv = mesh.uvs.get(k).copied().unwrap_or([0.0; 2]);
         let n = mesh.normals.get(k).copied().unwrap_or([0.0, 0.0, 1.0]);
-        for v in mesh.positions[k].iter().chain(&n).chain(&[uv[0], 1.0 - uv[1]]) {
+        for v in mesh.positions[k]
+            .iter()
+            .chain(&n)
+            .chain(&[uv[0], 1.0 - uv[1]])
+        {
             out.extend_from_slice(&v.to_le_bytes());
         }
     }
@@ -127,8 +131,7 @@ pub fn write_point_cloud_ply(
     let mut count = 0usize;
     for y in 0..h {
         for x in 0..w {
-            let Some(p) = camera.unproject(x as f32 + 0.5, y as f32 + 0.5, *depth.get(x, y))
-            else {
+            let Some(p) = camera.unproject(x as f32 + 0.5, y as f32 + 0.5, *depth.get(x, y)) else {
                 continue;
             };
             count += 1;
@@ -163,7 +166,9 @@ pub fn write_point_cloud_ply(
 pub fn write_obj(mesh: &SceneMesh, path: impl AsRef<Path>, texture: Option<&str>) -> Result<()> {
     let path = path.as_ref();
     let mut out = String::with_capacity(mesh.positions.len() * 80 + mesh.indices.len() * 12);
-    out.push_str("# parallax scene mesh (metres, camera frame: +X right, +Y up, looking along -Z)\n");
+    out.push_str(
+        "# parallax scene mesh (metres, camera frame: +X right, +Y up, looking along -Z)\n",
+    );
     if let Some(tex) = texture {
         let mtl = path.with_extension("mtl");
         let name = mtl
@@ -262,7 +267,7 @@ pub fn glb_bytes(mesh: &SceneMesh, texture: Option<&GlbTexture>) -> Result<Vec<u
     let mut bin: Vec<u8> = Vec::new();
     let mut views = Vec::new();
     let mut push_view = |bin: &mut Vec<u8>, data: &[u8], target: Option<u32>| {
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let offset = bin.len();
@@ -283,22 +288,38 @@ pub fn glb_bytes(mesh: &SceneMesh, texture: Option<&GlbTexture>) -> Result<Vec<u
             hi[k] = hi[k].max(p[k]);
         }
     }
-    let pos = push_view(&mut bin, bytemuck::cast_slice(&mesh.positions), Some(ARRAY_BUFFER));
+    let pos = push_view(
+        &mut bin,
+        bytemuck::cast_slice(&mesh.positions),
+        Some(ARRAY_BUFFER),
+    );
     let mut accessors = vec![json!({"bufferView": pos, "componentType": 5126, "count": n,
         "type": "VEC3", "min": lo, "max": hi})];
     let mut attributes = json!({"POSITION": 0});
     if mesh.normals.len() == n {
-        let v = push_view(&mut bin, bytemuck::cast_slice(&mesh.normals), Some(ARRAY_BUFFER));
+        let v = push_view(
+            &mut bin,
+            bytemuck::cast_slice(&mesh.normals),
+            Some(ARRAY_BUFFER),
+        );
         accessors.push(json!({"bufferView": v, "componentType": 5126, "count": n, "type": "VEC3"}));
         attributes["NORMAL"] = json!(accessors.len() - 1);
     }
     if mesh.tangents.len() == n {
-        let v = push_view(&mut bin, bytemuck::cast_slice(&mesh.tangents), Some(ARRAY_BUFFER));
+        let v = push_view(
+            &mut bin,
+            bytemuck::cast_slice(&mesh.tangents),
+            Some(ARRAY_BUFFER),
+        );
         accessors.push(json!({"bufferView": v, "componentType": 5126, "count": n, "type": "VEC4"}));
         attributes["TANGENT"] = json!(accessors.len() - 1);
     }
     if mesh.uvs.len() == n {
-        let v = push_view(&mut bin, bytemuck::cast_slice(&mesh.uvs), Some(ARRAY_BUFFER));
+        let v = push_view(
+            &mut bin,
+            bytemuck::cast_slice(&mesh.uvs),
+            Some(ARRAY_BUFFER),
+        );
         accessors.push(json!({"bufferView": v, "componentType": 5126, "count": n, "type": "VEC2"}));
         attributes["TEXCOORD_0"] = json!(accessors.len() - 1);
     }
@@ -333,14 +354,14 @@ pub fn glb_bytes(mesh: &SceneMesh, texture: Option<&GlbTexture>) -> Result<Vec<u
         doc["extensionsUsed"] = json!(["KHR_materials_unlit"]);
         doc["meshes"][0]["primitives"][0]["material"] = json!(0);
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     doc["bufferViews"] = json!(views);
     doc["buffers"] = json!([{"byteLength": bin.len()}]);
-    let mut text = serde_json::to_vec(&doc)
-        .map_err(|e| Error::Internal(format!("GLB JSON: {e}")))?;
-    while text.len() % 4 != 0 {
+    let mut text =
+        serde_json::to_vec(&doc).map_err(|e| Error::Internal(format!("GLB JSON: {e}")))?;
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
     let total = 12 + 8 + text.len() + 8 + bin.len();
@@ -418,7 +439,10 @@ mod tests {
         assert_eq!(indices, mesh.indices);
         let uvs: Vec<[f32; 2]> = reader.read_tex_coords(0).unwrap().into_f32().collect();
         assert_eq!(uvs, mesh.uvs);
-        assert_eq!(reader.read_tangents().unwrap().count(), mesh.positions.len());
+        assert_eq!(
+            reader.read_tangents().unwrap().count(),
+            mesh.positions.len()
+        );
         let image = glb.images().next().unwrap();
         let gltf::image::Source::View { view, mime_type } = image.source() else {
             panic!("image not in a buffer view")
@@ -437,7 +461,11 @@ mod tests {
         let ply = dir.path().join("m.ply");
         write_mesh_ply(&mesh, &ply).unwrap();
         let bytes = std::fs::read(&ply).unwrap();
-        let header_end = bytes.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+        let header_end = bytes
+            .windows(11)
+            .position(|w| w == b"end_header\n")
+            .unwrap()
+            + 11;
         let header = std::str::from_utf8(&bytes[..header_end]).unwrap();
         assert!(header.contains(&format!("element vertex {}", mesh.vertex_count())));
         assert!(header.contains(&format!("element face {}", mesh.triangle_count())));
@@ -451,15 +479,27 @@ mod tests {
         let obj = dir.path().join("m.obj");
         write_obj(&mesh, &obj, Some("photo.png")).unwrap();
         let text = std::fs::read_to_string(&obj).unwrap();
-        assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), mesh.vertex_count());
-        assert_eq!(text.lines().filter(|l| l.starts_with("f ")).count(), mesh.triangle_count());
+        assert_eq!(
+            text.lines().filter(|l| l.starts_with("v ")).count(),
+            mesh.vertex_count()
+        );
+        assert_eq!(
+            text.lines().filter(|l| l.starts_with("f ")).count(),
+            mesh.triangle_count()
+        );
         assert!(text.contains("mtllib m.mtl"));
         assert!(std::fs::read_to_string(dir.path().join("m.mtl"))
             .unwrap()
             .contains("map_Kd photo.png"));
 
         let cloud = dir.path().join("c.ply");
-        let depth = Raster::from_vec(6, 4, (0..24).map(|i| if i % 5 == 0 { f32::NAN } else { 2.0 }).collect());
+        let depth = Raster::from_vec(
+            6,
+            4,
+            (0..24)
+                .map(|i| if i % 5 == 0 { f32::NAN } else { 2.0 })
+                .collect(),
+        );
         let colours = Raster::filled(6, 4, [1.0f32, 0.0, 0.5]);
         write_point_cloud_ply(&depth, &camera, Some(&colours), &cloud).unwrap();
         let text = String::from_utf8_lossy(&std::fs::read(&cloud).unwrap()).into_owned();

@@ -56,7 +56,9 @@ impl MeshOptions {
     /// `InvalidArgument` naming the bad field.
     pub fn validate(&self) -> Result<()> {
         if self.step == 0 {
-            return Err(Error::invalid("mesh options: step must be ≥ 1 pixel, got 0"));
+            return Err(Error::invalid(
+                "mesh options: step must be ≥ 1 pixel, got 0",
+            ));
         }
         let a = self.max_grazing_angle_deg;
         if !(a > 0.0 && a < 90.0) {
@@ -421,10 +423,22 @@ mod tests {
         let e = SceneMesh::from_depth(&checker, &c, &MeshOptions::default()).unwrap_err();
         assert!(e.to_string().contains("continuous"), "{e}");
         for bad in [
-            MeshOptions { step: 0, ..Default::default() },
-            MeshOptions { max_grazing_angle_deg: 90.0, ..Default::default() },
-            MeshOptions { depth_noise: f32::NAN, ..Default::default() },
-            MeshOptions { max_triangles: Some(0), ..Default::default() },
+            MeshOptions {
+                step: 0,
+                ..Default::default()
+            },
+            MeshOptions {
+                max_grazing_angle_deg: 90.0,
+                ..Default::default()
+            },
+            MeshOptions {
+                depth_noise: f32::NAN,
+                ..Default::default()
+            },
+            MeshOptions {
+                max_triangles: Some(0),
+                ..Default::default()
+            },
         ] {
             assert!(SceneMesh::from_depth(&Raster::filled(4, 4, 1.0), &c, &bad).is_err());
         }
@@ -458,7 +472,16 @@ mod property_tests {
     #[test]
     fn random_depth_maps_give_valid_meshes() {
         let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
-        let specials = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.0, -1.0, 1e-30, 1e30, f32::MIN_POSITIVE];
+        let specials = [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            0.0,
+            -1.0,
+            1e-30,
+            1e30,
+            f32::MIN_POSITIVE,
+        ];
         let mut built = 0;
         for case in 0..300 {
             let w = 1 + rng.below(40);
@@ -482,7 +505,11 @@ mod property_tests {
                 step: 1 + rng.below(3) as u32,
                 max_grazing_angle_deg: 30.0 + rng.unit() * 59.0,
                 depth_noise: rng.unit() * 0.1,
-                max_triangles: if rng.below(2) == 0 { Some(1 + rng.below(200)) } else { None },
+                max_triangles: if rng.below(2) == 0 {
+                    Some(1 + rng.below(200))
+                } else {
+                    None
+                },
             };
             let Ok(mesh) = SceneMesh::from_depth(&depth, &camera, &options) else {
                 continue;
@@ -490,21 +517,42 @@ mod property_tests {
             built += 1;
             let n = mesh.positions.len();
             assert!(mesh.triangle_count() > 0, "case {case}");
-            assert!(mesh.indices.iter().all(|&i| (i as usize) < n), "case {case}");
-            assert_eq!((mesh.normals.len(), mesh.tangents.len(), mesh.uvs.len()), (n, n, n));
+            assert!(
+                mesh.indices.iter().all(|&i| (i as usize) < n),
+                "case {case}"
+            );
+            assert_eq!(
+                (mesh.normals.len(), mesh.tangents.len(), mesh.uvs.len()),
+                (n, n, n)
+            );
             for k in 0..n {
-                assert!(mesh.positions[k].iter().all(|v| v.is_finite()), "case {case}");
-                assert!(mesh.uvs[k].iter().all(|v| (0.0..=1.0).contains(v)), "case {case}");
+                assert!(
+                    mesh.positions[k].iter().all(|v| v.is_finite()),
+                    "case {case}"
+                );
+                assert!(
+                    mesh.uvs[k].iter().all(|v| (0.0..=1.0).contains(v)),
+                    "case {case}"
+                );
                 let nl = Vec3::from(mesh.normals[k]);
-                assert!(nl.is_finite() && (nl.length() - 1.0).abs() < 1e-3, "case {case}: {nl}");
+                assert!(
+                    nl.is_finite() && (nl.length() - 1.0).abs() < 1e-3,
+                    "case {case}: {nl}"
+                );
                 let t = mesh.tangents[k];
                 let tv = Vec3::new(t[0], t[1], t[2]);
-                assert!(tv.is_finite() && (tv.length() - 1.0).abs() < 1e-3, "case {case}");
+                assert!(
+                    tv.is_finite() && (tv.length() - 1.0).abs() < 1e-3,
+                    "case {case}"
+                );
                 assert!(tv.dot(nl).abs() < 1e-3, "case {case}");
                 assert!(t[3] == 1.0 || t[3] == -1.0);
             }
             for tri in mesh.indices.chunks_exact(3) {
-                assert!(tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2], "case {case}");
+                assert!(
+                    tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2],
+                    "case {case}"
+                );
             }
         }
         assert!(built > 100, "only {built} of 300 random maps gave a mesh");

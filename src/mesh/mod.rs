@@ -20,7 +20,9 @@ pub mod surfaces;
 pub use bvh::{pick, Bvh, Hit, Ray};
 pub use grid::MeshOptions;
 pub use place::{place, place_on_ray, Orientation, PlaceOptions, Placement};
-pub use surfaces::{detect_surfaces, SupportSurface, SurfaceKind, SurfaceOptions, Surfaces, UpSource};
+pub use surfaces::{
+    detect_surfaces, SupportSurface, SurfaceKind, SurfaceOptions, Surfaces, UpSource,
+};
 
 use glam::{DVec3, Vec3};
 
@@ -69,8 +71,7 @@ impl SceneMesh {
     /// Recomputes smooth normals and tangents from positions, UVs and indices (after positions
     /// changed, e.g. by simplification).
     pub fn recompute_normals_and_tangents(&mut self) {
-        let (normals, tangents) =
-            normals_and_tangents(&self.positions, &self.uvs, &self.indices);
+        let (normals, tangents) = normals_and_tangents(&self.positions, &self.uvs, &self.indices);
         self.normals = normals;
         self.tangents = tangents;
     }
@@ -170,7 +171,9 @@ pub(crate) fn normals_and_tangents(
         let normal = normal_sum[i].try_normalize().unwrap_or(towards_camera);
         // Gram–Schmidt; fall back to any perpendicular when UVs say nothing.
         let t = tangent_sum[i] - normal * normal.dot(tangent_sum[i]);
-        let tangent = t.try_normalize().unwrap_or_else(|| normal.any_orthonormal_vector());
+        let tangent = t
+            .try_normalize()
+            .unwrap_or_else(|| normal.any_orthonormal_vector());
         let w = if normal.cross(tangent).dot(bitangent_sum[i]) < 0.0 {
             -1.0
         } else {

@@ -121,11 +121,13 @@ pub fn place_on_ray(
         )));
     }
     if !yaw_rad.is_finite() {
-        return Err(Error::invalid(format!("place: yaw {yaw_rad} is not finite")));
+        return Err(Error::invalid(format!(
+            "place: yaw {yaw_rad} is not finite"
+        )));
     }
-    if !(options.max_tilt_deg >= 0.0 && options.max_tilt_deg <= 90.0)
-        || !(options.snap_tolerance.is_finite() && options.snap_tolerance >= 0.0)
-    {
+    let tilt_ok = (0.0..=90.0).contains(&options.max_tilt_deg);
+    let snap_ok = options.snap_tolerance.is_finite() && options.snap_tolerance >= 0.0;
+    if !(tilt_ok && snap_ok) {
         return Err(Error::invalid(format!(
             "place: max_tilt_deg must be in [0, 90] and snap_tolerance finite ≥ 0, got {} and {}",
             options.max_tilt_deg, options.snap_tolerance
@@ -133,7 +135,9 @@ pub fn place_on_ray(
     }
     let model = model_normalisation(options.model_bounds)?;
     if !(ray.origin.is_finite() && ray.direction.is_finite() && ray.direction.length() > 0.0) {
-        return Err(Error::invalid("place: the ray is not finite or has no direction"));
+        return Err(Error::invalid(
+            "place: the ray is not finite or has no direction",
+        ));
     }
     let hit = bvh
         .closest_hit(ray)

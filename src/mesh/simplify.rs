@@ -17,6 +17,10 @@ use glam::{DVec3, Vec3};
 
 use super::SceneMesh;
 
+/// A queued half-edge collapse: (cost bits, removed vertex, kept vertex, their stamps when
+/// queued). Non-negative f64 costs order like their bit patterns.
+type Candidate = (u64, u32, u32, u32, u32);
+
 /// Weight of the boundary-preserving quadrics relative to the surface ones.
 const BOUNDARY_WEIGHT: f64 = 10.0;
 /// A collapse may turn a triangle's normal by at most this much (cos 60°).
@@ -30,7 +34,19 @@ impl Quadric {
     fn plane(n: DVec3, d: f64, w: f64) -> Quadric {
         let (a, b, c) = (n.x, n.y, n.z);
         Quadric(
-            [a * a, a * b, a * c, a * d, b * b, b * c, b * d, c * c, c * d, d * d].map(|v| v * w),
+            [
+                a * a,
+                a * b,
+                a * c,
+                a * d,
+                b * b,
+                b * c,
+                b * d,
+                c * c,
+                c * d,
+                d * d,
+            ]
+            .map(|v| v * w),
         )
     }
     fn add(&self, o: &Quadric) -> Quadric {
@@ -43,7 +59,10 @@ impl Quadric {
     fn error(&self, p: DVec3) -> f64 {
         let q = &self.0;
         let (x, y, z) = (p.x, p.y, p.z);
-        let e = q[0] * x * x + 2.0 * q[1] * x * y + 2.0 * q[2] * x * z + 2.0 * q[3] * x
+        let e = q[0] * x * x
+            + 2.0 * q[1] * x * y
+            + 2.0 * q[2] * x * z
+            + 2.0 * q[3] * x
             + q[4] * y * y
             + 2.0 * q[5] * y * z
             + 2.0 * q[6] * y
@@ -106,7 +125,9 @@ pub fn simplify(mesh: &SceneMesh, max_triangles: usize) -> SceneMesh {
     for (t, tri) in tris.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            let e = edge_use.entry((a.min(b), a.max(b))).or_insert((0, t as u32));
+            let e = edge_use
+                .entry((a.min(b), a.max(b)))
+                .or_insert((0, t as u32));
             e.0 += 1;
         }
     }
@@ -136,7 +157,7 @@ pub fn simplify(mesh: &SceneMesh, max_triangles: usize) -> SceneMesh {
 
     let mut stamp = vec![0u32; n];
     let mut removed = vec![false; n];
-    let mut heap: BinaryHeap<Reverse<(u64, u32, u32, u32, u32)>> = BinaryHeap::new();
+    let mut heap: BinaryHeap<Reverse<Candidate>> = BinaryHeap::new();
     let push = |heap: &mut BinaryHeap<_>, quadrics: &[Quadric], stamp: &[u32], u: u32, v: u32| {
         let q = quadrics[u as usize].add(&quadrics[v as usize]);
         let cost = q.error(pos[v as usize]);
@@ -240,7 +261,13 @@ pub fn simplify(mesh: &SceneMesh, max_triangles: usize) -> SceneMesh {
         for &w in &neighbours_v {
             push(&mut heap, &quadrics, &stamp, w, v);
             push(&mut heap, &quadrics, &stamp, v, w);
-            collect_neighbours(&vertex_tris[w as usize], &tris, &alive, w, &mut neighbours_u);
+            collect_neighbours(
+                &vertex_tris[w as usize],
+                &tris,
+                &alive,
+                w,
+                &mut neighbours_u,
+            );
             for &x in &neighbours_u {
                 if x != v {
                     push(&mut heap, &quadrics, &stamp, w, x);
@@ -336,7 +363,11 @@ mod tests {
         let full = SceneMesh::from_depth(&truth, &camera, &MeshOptions::default()).unwrap();
         let budget = 200;
         let small = simplify(&full, budget);
-        assert!(small.triangle_count() <= budget, "{}", small.triangle_count());
+        assert!(
+            small.triangle_count() <= budget,
+            "{}",
+            small.triangle_count()
+        );
         assert!(full.triangle_count() > 40 * budget);
         let (worst, missed) = max_relative_depth_error(&small, &camera, &truth);
         assert!(worst < 1e-3, "relative depth error {worst}");
@@ -346,7 +377,10 @@ mod tests {
         for n in &small.normals {
             assert!((Vec3::from(*n).length() - 1.0).abs() < 1e-4);
         }
-        assert!(small.indices.iter().all(|&i| (i as usize) < small.positions.len()));
+        assert!(small
+            .indices
+            .iter()
+            .all(|&i| (i as usize) < small.positions.len()));
     }
 
     #[test]

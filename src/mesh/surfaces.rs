@@ -226,7 +226,7 @@ pub fn detect_surfaces(
         .iter()
         .map(|(plane, piece)| describe(plane, piece, &points, camera, up, stride))
         .collect();
-    surfaces.sort_by(|a, b| b.inliers.cmp(&a.inliers));
+    surfaces.sort_by_key(|s| std::cmp::Reverse(s.inliers));
     Ok(Surfaces {
         surfaces,
         up,
@@ -294,7 +294,10 @@ fn best_hypothesis(
         let Some(plane) = Plane::through(a.p, b.p, c.p) else {
             continue;
         };
-        if [a, b, c].iter().any(|q| plane.normal.dot(q.n).abs() < cos_tol) {
+        if [a, b, c]
+            .iter()
+            .any(|q| plane.normal.dot(q.n).abs() < cos_tol)
+        {
             continue;
         }
         let score = sample
@@ -327,8 +330,11 @@ fn fit_plane(points: &[Point], idx: &[usize]) -> Option<Plane> {
     }
     let (values, vectors) = symmetric_eigen(cov);
     let smallest = (0..3).min_by(|&a, &b| values[a].total_cmp(&values[b]))?;
-    let others: Vec<f64> = (0..3).filter(|&k| k != smallest).map(|k| values[k]).collect();
-    if others.iter().any(|&v| !(v > 0.0)) {
+    let others: Vec<f64> = (0..3)
+        .filter(|&k| k != smallest)
+        .map(|k| values[k])
+        .collect();
+    if others.iter().any(|&v| v.is_nan() || v <= 0.0) {
         return None;
     }
     let n = vectors[smallest].try_normalize()?;
@@ -354,15 +360,15 @@ fn symmetric_eigen(mut a: [[f64; 3]; 3]) -> ([f64; 3], [DVec3; 3]) {
             let t = if theta == 0.0 { 1.0 } else { t };
             let c = 1.0 / (t * t + 1.0).sqrt();
             let s = t * c;
-            for k in 0..3 {
-                let (akp, akq) = (a[k][p], a[k][q]);
-                a[k][p] = c * akp - s * akq;
-                a[k][q] = s * akp + c * akq;
+            for row in a.iter_mut() {
+                let (akp, akq) = (row[p], row[q]);
+                row[p] = c * akp - s * akq;
+                row[q] = s * akp + c * akq;
             }
+            let (row_p, row_q) = (a[p], a[q]);
             for k in 0..3 {
-                let (apk, aqk) = (a[p][k], a[q][k]);
-                a[p][k] = c * apk - s * aqk;
-                a[q][k] = s * apk + c * aqk;
+                a[p][k] = c * row_p[k] - s * row_q[k];
+                a[q][k] = s * row_p[k] + c * row_q[k];
             }
             for row in v.iter_mut() {
                 let (vp, vq) = (row[p], row[q]);
@@ -514,7 +520,10 @@ fn describe(
             .map(|(a, b)| a.perp_dot(*b))
             .sum::<f32>()
             .abs();
-    let polygon: Vec<Vec3> = hull.iter().map(|q| centroid + e1 * q.x + e2 * q.y).collect();
+    let polygon: Vec<Vec3> = hull
+        .iter()
+        .map(|q| centroid + e1 * q.x + e2 * q.y)
+        .collect();
     let polygon_image = polygon
         .iter()
         .filter_map(|p| camera.project(*p).map(|(px, _)| px))
