@@ -38,7 +38,7 @@ impl Ray {
     /// obvhs' ray. A direction component of −0.0 becomes +0.0: obvhs derives the traversal
     /// octant and the inverse direction from the sign bits separately, and a negative zero made
     /// axis-aligned rays (e.g. a host's ray straight down) miss everything.
-    fn to_obvhs(&self) -> obvhs::ray::Ray {
+    fn to_obvhs(self) -> obvhs::ray::Ray {
         let direction = self.direction + Vec3::ZERO;
         obvhs::ray::Ray::new(self.origin.into(), direction.into(), 0.0, self.t_max)
     }
