@@ -10,16 +10,15 @@
 //! and by only sliding along themselves) stay fine. Collapses that would flip a triangle (its
 //! normal turning by more than 60°) or make the surface non-manifold are refused.
 
-use std::cmp::Reverse;
-use std::collections::{BinaryHeap, HashMap};
+use std::collections::HashMap;
 
 use glam::{DVec3, Vec3};
 
 use super::SceneMesh;
 
-/// A queued half-edge collapse: (cost as f32 bits, the vertex to remove, the one to keep, their
-/// stamps when queued). Non-negative floats order like their bit patterns; 20 bytes keep the heap compact.
-type Candidate = (u32, u32, u32, u32, u32);
+/// A half-edge collapse: (cost as f32 bits, the vertex to remove, the one to keep). Non-negative
+/// floats order like their bit patterns.
+type Candidate = (u32, u32, u32);
 
 /// Weight of the boundary-preserving quadrics relative to the surface ones.
 const BOUNDARY_WEIGHT: f64 = 10.0;
@@ -164,89 +163,106 @@ pub fn simplify(mesh: &SceneMesh, max_triangles: usize) -> SceneMesh {
         quadrics[b as usize] = quadrics[b as usize].add(&q);
     }
 
-    let mut stamp = vec![0u32; n];
-    let mut removed = vec![false; n];
-    let mut heap: BinaryHeap<Reverse<Candidate>> = BinaryHeap::new();
-    // One entry per edge direction: the cost of removing `u` into `v`.
-    let push = |heap: &mut BinaryHeap<_>, quadrics: &[Quadric], stamp: &[u32], u: u32, v: u32| {
-        let q = quadrics[u as usize].add(&quadrics[v as usize]);
-        // Ties (a flat region costs ~0 everywhere) go to the shorter edge, so flat regions
-        // coarsen evenly instead of growing fans of unbounded valence around one vertex.
-        let length2 = (pos[u as usize] - pos[v as usize]).length_squared();
-        let cost = q.error(pos[v as usize]) + TIE_BREAK * q.weight() * length2;
-        heap.push(Reverse((
-            (cost as f32).to_bits(),
-            u,
-            v,
-            stamp[u as usize],
-            stamp[v as usize],
-        )));
-    };
-    for &(a, b) in edge_use.keys() {
-        push(&mut heap, &quadrics, &stamp, a, b);
-        push(&mut heap, &quadrics, &stamp, b, a);
-    }
     drop(edge_use);
-
-    let mut neighbours_v = Vec::new();
+    let mut removed = vec![false; n];
+    let mut neighbours = Vec::new();
+    let mut candidates: Vec<Candidate> = Vec::new();
+    // Rounds: cost every live edge in both directions, sort, and collapse in cost order while no
+    // vertex is touched twice in a round (a collapse locks the kept vertex and its neighbours,
+    // whose costs it changed). A sort per round is far more cache-friendly than a priority
+    // queue with millions of stale entries, and about ten rounds reach any budget.
+    let mut limit_to_cheapest = true;
     while live_count > max_triangles {
-        let Some(Reverse((_, first, second, s1, s2))) = heap.pop() else {
-            break;
-        };
-        if removed[first as usize]
-            || removed[second as usize]
-            || stamp[first as usize] != s1
-            || stamp[second as usize] != s2
-        {
-            continue;
-        }
-        // The cheaper direction first; the other when that one is refused.
-        let Some((u, v, shared)) =
-            [(first, second), (second, first)]
-                .into_iter()
-                .find_map(|(u, v)| {
-                    collapse_allowed(u, v, &vertex_tris, &tris, &alive, &boundary, &pos)
-                        .map(|shared| (u, v, shared))
-                })
-        else {
-            continue;
-        };
-        let (ui, vi) = (u as usize, v as usize);
-
-        // Collapse u into v.
-        for &t in &shared {
-            alive[t as usize] = false;
-            live_count -= 1;
-        }
-        let moved: Vec<u32> = vertex_tris[ui]
-            .iter()
-            .copied()
-            .filter(|&t| alive[t as usize])
-            .collect();
-        for &t in &moved {
-            for w in tris[t as usize].iter_mut() {
-                if *w == u {
-                    *w = v;
+        candidates.clear();
+        for (t, tri) in tris.iter().enumerate() {
+            if !alive[t] {
+                continue;
+            }
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                // Each interior edge is in two triangles: take it from the one where a < b, or
+                // from its only triangle on the boundary.
+                if a < b || boundary[a as usize] && boundary[b as usize] {
+                    for (u, v) in [(a, b), (b, a)] {
+                        let q = quadrics[u as usize].add(&quadrics[v as usize]);
+                        // Ties (a flat region costs ~0 everywhere) go to the shorter edge, so
+                        // flat regions coarsen evenly instead of growing fans.
+                        let length2 = (pos[u as usize] - pos[v as usize]).length_squared();
+                        let cost = q.error(pos[v as usize]) + TIE_BREAK * q.weight() * length2;
+                        candidates.push(((cost as f32).to_bits(), u, v));
+                    }
                 }
             }
         }
-        removed[ui] = true;
-        vertex_tris[ui] = Vec::new();
-        let mut merged: Vec<u32> = vertex_tris[vi]
-            .iter()
-            .copied()
-            .filter(|&t| alive[t as usize])
-            .collect();
-        merged.extend(moved);
-        vertex_tris[vi] = merged;
-        quadrics[vi] = quadrics[vi].add(&quadrics[ui]);
-        stamp[vi] += 1;
-        // Only costs of edges at v changed (its quadric grew); their old queue entries carry
-        // v's previous stamp and are dropped when popped. Validity is re-checked at pop time.
-        collect_neighbours(&vertex_tris[vi], &tris, &alive, v, &mut neighbours_v);
-        for &w in &neighbours_v {
-            push(&mut heap, &quadrics, &stamp, v, w);
-            push(&mut heap, &quadrics, &stamp, w, v);
+        candidates.sort_unstable();
+        let mut locked = vec![false; n];
+        let before = live_count;
+        // At most half of what is still to remove per round, so that late collapses are chosen
+        // with up-to-date costs.
+        let round_target = live_count - (live_count - max_triangles).div_ceil(2);
+        // …and only among the cheapest candidates: each collapse removes about two triangles, so
+        // the round may use the cheapest `2 × (triangles to remove)` edge directions — a flat
+        // region locked by its neighbours' collapses waits for the next round rather than
+        // letting a curved edge go first.
+        let cheapest = (2 * (live_count - round_target)).min(candidates.len() - 1);
+        let threshold = if limit_to_cheapest {
+            candidates[cheapest].0
+        } else {
+            u32::MAX
+        };
+        for &(cost, u, v) in &candidates {
+            if live_count <= round_target.max(max_triangles) || cost > threshold {
+                break;
+            }
+            let (ui, vi) = (u as usize, v as usize);
+            if removed[ui] || removed[vi] || locked[ui] || locked[vi] {
+                continue;
+            }
+            let Some(shared) = collapse_allowed(u, v, &vertex_tris, &tris, &alive, &boundary, &pos)
+            else {
+                continue;
+            };
+            for &t in &shared {
+                alive[t as usize] = false;
+                live_count -= 1;
+            }
+            let moved: Vec<u32> = vertex_tris[ui]
+                .iter()
+                .copied()
+                .filter(|&t| alive[t as usize])
+                .collect();
+            for &t in &moved {
+                for w in tris[t as usize].iter_mut() {
+                    if *w == u {
+                        *w = v;
+                    }
+                }
+            }
+            removed[ui] = true;
+            vertex_tris[ui] = Vec::new();
+            let mut merged: Vec<u32> = vertex_tris[vi]
+                .iter()
+                .copied()
+                .filter(|&t| alive[t as usize])
+                .collect();
+            merged.extend(moved);
+            vertex_tris[vi] = merged;
+            quadrics[vi] = quadrics[vi].add(&quadrics[ui]);
+            locked[vi] = true;
+            collect_neighbours(&vertex_tris[vi], &tris, &alive, v, &mut neighbours);
+            for &w in &neighbours {
+                locked[w as usize] = true;
+            }
+        }
+        if live_count == before {
+            if !limit_to_cheapest {
+                // Every remaining collapse would fold or tear the surface.
+                break;
+            }
+            // The cheapest ones were all refused: try the whole list once.
+            limit_to_cheapest = false;
+        } else {
+            limit_to_cheapest = true;
         }
     }
 
