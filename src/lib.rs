@@ -9,7 +9,8 @@
 //! | module | stage |
 //! |---|---|
 //! | [`image`] | image buffers and views, sRGB↔linear, PNG/JPEG/PFM/EXR/HDR I/O |
-//! | [`camera`] | calibration, disparity ↔ depth |
+//! | [`camera`] | calibration, disparity ↔ depth, pinhole camera, depth-buffer encodings |
+//! | [`mesh`] | scene mesh from depth, ray queries (BVH), support surfaces, placement, export |
 //! | [`context`] | what scenes share: size caps, the lazily opened GPU |
 //! | [`scene`] | the demand-driven pipeline with cached products and a [`trace::Trace`] |
 //! | [`ffi`] | the C ABI (`include/parallax.h`) |
@@ -21,8 +22,8 @@ pub mod camera;
 pub mod context;
 pub mod error;
 pub mod ffi;
-
 pub mod image;
+pub mod mesh;
 #[cfg(feature = "gpu")]
 pub mod render;
 pub mod scene;

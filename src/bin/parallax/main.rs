@@ -4,7 +4,10 @@
 //! message on stderr names what was wrong); 2 bad usage (unknown flag, missing argument).
 
 mod common;
+mod depth_input;
 mod info;
+mod mesh;
+mod surfaces;
 
 use clap::{Parser, Subcommand};
 
@@ -20,12 +23,18 @@ struct Cli {
 enum Command {
     /// Version, compiled features and the GPU adapters found.
     Info(info::Args),
+    /// Scene mesh from depth (or disparity + calibration), written as GLB, PLY or OBJ.
+    Mesh(mesh::Args),
+    /// Support planes and the gravity "up" from depth, as JSON and a preview over the photo.
+    Surfaces(surfaces::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(args) => info::run(args),
+        Command::Mesh(args) => mesh::run(args),
+        Command::Surfaces(args) => surfaces::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,0 +1,120 @@
+//! `parallax mesh`: depth → scene mesh → GLB / PLY / OBJ.
+
+use std::path::PathBuf;
+
+use parallax::mesh::export::{
+    write_glb, write_mesh_ply, write_obj, write_point_cloud_ply, GlbTexture,
+};
+use parallax::mesh::{simplify::simplify, MeshOptions, SceneMesh};
+use parallax::trace::Trace;
+use parallax::{Error, Result};
+
+use crate::common::CommonArgs;
+use crate::depth_input::DepthInput;
+
+/// Arguments of `parallax mesh`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    input: DepthInput,
+    /// Output mesh: `.glb` (with the photo as texture when --image is given), `.ply` or `.obj`.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Simplify to at most N triangles (flat regions coarse, edges fine).
+    #[arg(long, value_name = "N")]
+    max_triangles: Option<usize>,
+    /// Grid step in pixels (1 = a vertex per pixel).
+    #[arg(long, default_value_t = 1)]
+    step: u32,
+    /// Most oblique view of a surface still meshed as continuous, degrees (cuts above it).
+    #[arg(long, value_name = "DEG", default_value_t = 85.0)]
+    max_angle: f32,
+    /// Relative depth noise tolerated between neighbouring pixels.
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
+    depth_noise: f32,
+    /// Also write the point cloud (coloured with --image) as PLY.
+    #[arg(long, value_name = "FILE.ply")]
+    out_points: Option<PathBuf>,
+    #[command(flatten)]
+    common: CommonArgs,
+}
+
+/// Builds the mesh and writes it in the format the extension of `--out` names.
+pub fn run(args: Args) -> Result<()> {
+    let mut trace = Trace::new();
+    let format = args
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default();
+    if !["glb", "ply", "obj"].contains(&format.as_str()) {
+        return Err(Error::invalid(format!(
+            "--out {}: the extension must be .glb, .ply or .obj",
+            args.out.display()
+        )));
+    }
+    let loaded = args.input.load(&mut trace)?;
+    let options = MeshOptions {
+        step: args.step,
+        max_grazing_angle_deg: args.max_angle,
+        depth_noise: args.depth_noise,
+        max_triangles: None,
+    };
+    let spinner = args.common.spinner("building the scene mesh");
+    let mut mesh = trace.time("mesh", "requested by mesh", |_| {
+        SceneMesh::from_depth(&loaded.depth, &loaded.camera, &options)
+    })?;
+    let full_triangles = mesh.triangle_count();
+    if let Some(budget) = args.max_triangles {
+        if budget == 0 {
+            return Err(Error::invalid("--max-triangles must be ≥ 1"));
+        }
+        if mesh.triangle_count() > budget {
+            mesh = trace.time("mesh.simplify", "--max-triangles given", |_| {
+                simplify(&mesh, budget)
+            });
+        } else {
+            trace.record(
+                "mesh.simplify",
+                parallax::trace::StageStatus::Skipped,
+                0.0,
+                "the grid mesh is already within --max-triangles",
+            );
+        }
+    }
+    spinner.finish_and_clear();
+    trace.time("mesh.export", "writing --out", |_| match format.as_str() {
+        "glb" => {
+            let texture = loaded
+                .photo
+                .as_ref()
+                .map(GlbTexture::from_image)
+                .transpose()?;
+            write_glb(&mesh, texture.as_ref(), &args.out)
+        }
+        "ply" => write_mesh_ply(&mesh, &args.out),
+        _ => {
+            let texture = args.input.image.as_ref().map(|p| p.display().to_string());
+            write_obj(&mesh, &args.out, texture.as_deref())
+        }
+    })?;
+    if let Some(path) = &args.out_points {
+        let colours = loaded.photo.as_ref().map(|p| p.to_linear_rgb());
+        write_point_cloud_ply(&loaded.depth, &loaded.camera, colours.as_ref(), path)?;
+    }
+    if !args.common.quiet {
+        eprintln!(
+            "parallax: {} triangles ({} before simplification), {} vertices, near {:.3} m, far \
+             {:.3} m, f = {:.1} px → {}",
+            mesh.triangle_count(),
+            full_triangles,
+            mesh.vertex_count(),
+            loaded.camera.near,
+            loaded.camera.far,
+            loaded.camera.fx,
+            args.out.display()
+        );
+    }
+    args.common.finish(&trace)
+}

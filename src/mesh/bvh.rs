@@ -1,0 +1,363 @@
+//! Ray queries over the scene mesh with obvhs' compressed wide BVH (CWBVH): closest hit (pick a
+//! pixel → 3D point, normal, distance) and any-hit occlusion, one at a time or batched in parallel.
+
+use std::time::Duration;
+
+use glam::{Vec2, Vec3};
+use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
+use obvhs::ray::RayHit;
+use obvhs::triangle::Triangle;
+use obvhs::BvhBuildParams;
+use rayon::prelude::*;
+
+use super::SceneMesh;
+use crate::camera::Camera;
+
+/// A ray: origin and direction (any length > 0; hits report `t` in units of that length) and the
+/// largest `t` of interest.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ray {
+    /// Start point, metres.
+    pub origin: Vec3,
+    /// Direction; need not be unit length.
+    pub direction: Vec3,
+    /// Hits beyond `origin + t_max · direction` are ignored (`f32::INFINITY` for none).
+    pub t_max: f32,
+}
+
+impl Ray {
+    /// A ray without a far limit.
+    pub fn new(origin: Vec3, direction: Vec3) -> Ray {
+        Ray {
+            origin,
+            direction,
+            t_max: f32::INFINITY,
+        }
+    }
+
+    /// obvhs' ray. A direction component of −0.0 becomes +0.0: obvhs derives the traversal
+    /// octant and the inverse direction from the sign bits separately, and a negative zero made
+    /// axis-aligned rays (e.g. a host's ray straight down) miss everything.
+    fn to_obvhs(self) -> obvhs::ray::Ray {
+        let direction = self.direction + Vec3::ZERO;
+        obvhs::ray::Ray::new(self.origin.into(), direction.into(), 0.0, self.t_max)
+    }
+
+    fn is_valid(&self) -> bool {
+        self.origin.is_finite()
+            && self.direction.is_finite()
+            && self.direction.length_squared() > 0.0
+            && !self.t_max.is_nan()
+            && self.t_max > 0.0
+    }
+}
+
+/// Where a ray meets the mesh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Ray parameter: `point = origin + t · direction`.
+    pub t: f32,
+    /// The hit point, metres.
+    pub point: Vec3,
+    /// Unit normal of the triangle hit, facing the ray's origin.
+    pub geometric_normal: Vec3,
+    /// Unit smooth normal interpolated from the mesh's vertex normals (facing the same side as
+    /// `geometric_normal`); equal to it when the mesh has no normals.
+    pub normal: Vec3,
+    /// Index of the triangle hit (into `SceneMesh::indices / 3`).
+    pub triangle: u32,
+    /// Barycentric coordinates of the hit: weights of the triangle's 2nd and 3rd corners.
+    pub barycentric: Vec2,
+}
+
+/// A bounding-volume hierarchy over a triangle mesh. Read-only after construction and `Sync`, so
+/// one `Bvh` can serve many threads.
+pub struct Bvh {
+    bvh: Option<CwBvh>,
+    triangles: Vec<Triangle>,
+    /// Per-triangle vertex normals (for smooth hit normals), when the mesh has them.
+    corner_normals: Vec<[Vec3; 3]>,
+}
+
+impl std::fmt::Debug for Bvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bvh")
+            .field("triangles", &self.triangles.len())
+            .finish()
+    }
+}
+
+impl Bvh {
+    /// Builds the hierarchy over a scene mesh. Triangles with a non-finite corner are left out;
+    /// an empty mesh gives a BVH that no ray hits.
+    pub fn new(mesh: &SceneMesh) -> Bvh {
+        let normals_ok = mesh.normals.len() == mesh.positions.len();
+        let mut triangles = Vec::with_capacity(mesh.triangle_count());
+        let mut corner_normals = Vec::new();
+        for t in mesh.indices.chunks_exact(3) {
+            let Some(corners) = t
+                .iter()
+                .map(|&i| mesh.positions.get(i as usize).map(|p| Vec3::from(*p)))
+                .collect::<Option<Vec<_>>>()
+            else {
+                continue;
+            };
+            if !corners.iter().all(|p| p.is_finite()) {
+                continue;
+            }
+            triangles.push(Triangle {
+                v0: corners[0].into(),
+                v1: corners[1].into(),
+                v2: corners[2].into(),
+            });
+            if normals_ok {
+                corner_normals.push([0, 1, 2].map(|k| Vec3::from(mesh.normals[t[k] as usize])));
+            }
+        }
+        Bvh::from_parts(triangles, corner_normals)
+    }
+
+    /// Builds the hierarchy over bare triangles (three corners each), e.g. the scene plus
+    /// inserted artefacts.
+    pub fn from_triangles(triangles: &[[Vec3; 3]]) -> Bvh {
+        let triangles = triangles
+            .iter()
+            .filter(|t| t.iter().all(|p| p.is_finite()))
+            .map(|t| Triangle {
+                v0: t[0].into(),
+                v1: t[1].into(),
+                v2: t[2].into(),
+            })
+            .collect();
+        Bvh::from_parts(triangles, Vec::new())
+    }
+
+    fn from_parts(triangles: Vec<Triangle>, corner_normals: Vec<[Vec3; 3]>) -> Bvh {
+        let bvh = (!triangles.is_empty()).then(|| {
+            build_cwbvh_from_tris(
+                &triangles,
+                BvhBuildParams::medium_build(),
+                &mut Duration::default(),
+            )
+        });
+        Bvh {
+            bvh,
+            triangles,
+            corner_normals,
+        }
+    }
+
+    /// Number of triangles in the hierarchy.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// The nearest hit along the ray within `(0, t_max]`, or `None` (also for a ray with a
+    /// non-finite or zero direction).
+    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        let bvh = self.bvh.as_ref()?;
+        if !ray.is_valid() {
+            return None;
+        }
+        let r = ray.to_obvhs();
+        let mut hit = RayHit::none();
+        let found = bvh.ray_traverse(r, &mut hit, |r, id| {
+            self.triangles[bvh.primitive_indices[id] as usize].intersect(r)
+        });
+        if !found {
+            return None;
+        }
+        let index = bvh.primitive_indices[hit.primitive_id as usize] as usize;
+        let tri = &self.triangles[index];
+        let bary = tri.compute_barycentric(&r);
+        let point = ray.origin + ray.direction * hit.t;
+        let mut geometric = Vec3::from(tri.compute_normal());
+        if geometric.dot(ray.direction) > 0.0 {
+            geometric = -geometric;
+        }
+        let normal = match self.corner_normals.get(index) {
+            Some(n) => {
+                let smooth = n[0] * (1.0 - bary.x - bary.y) + n[1] * bary.x + n[2] * bary.y;
+                let smooth = smooth.normalize_or(geometric);
+                if smooth.dot(geometric) < 0.0 {
+                    -smooth
+                } else {
+                    smooth
+                }
+            }
+            None => geometric,
+        };
+        Some(Hit {
+            t: hit.t,
+            point,
+            geometric_normal: geometric,
+            normal,
+            triangle: index as u32,
+            barycentric: bary,
+        })
+    }
+
+    /// Whether anything lies along the ray within `(0, t_max)` (shadow rays): stops at the first
+    /// hit found, not the nearest.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let Some(bvh) = self.bvh.as_ref() else {
+            return false;
+        };
+        if !ray.is_valid() {
+            return false;
+        }
+        let r = ray.to_obvhs();
+        !bvh.ray_traverse_miss(r, |r, id| {
+            self.triangles[bvh.primitive_indices[id] as usize].intersect(r)
+        })
+    }
+
+    /// [`Bvh::closest_hit`] for many rays, in parallel (rayon).
+    pub fn closest_hits(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
+        rays.par_iter().map(|r| self.closest_hit(r)).collect()
+    }
+
+    /// [`Bvh::occluded`] for many rays, in parallel (rayon).
+    pub fn occluded_batch(&self, rays: &[Ray]) -> Vec<bool> {
+        rays.par_iter().map(|r| self.occluded(r)).collect()
+    }
+}
+
+/// The ray of the camera through image position `pixel` (continuous pixels: the centre of pixel
+/// `(x, y)` is `(x + 0.5, y + 0.5)`).
+pub fn camera_ray(camera: &Camera, pixel: Vec2) -> Ray {
+    Ray::new(Vec3::ZERO, camera.ray_direction(pixel.x, pixel.y))
+}
+
+/// Picks the scene surface seen at `pixel`: the 3D point, its normal and its distance from the
+/// camera (`Hit::t`, metres, because the camera ray is unit length). `None` where the mesh has a
+/// hole or the pixel is not finite.
+pub fn pick(bvh: &Bvh, camera: &Camera, pixel: Vec2) -> Option<Hit> {
+    if !pixel.is_finite() {
+        return None;
+    }
+    bvh.closest_hit(&camera_ray(camera, pixel))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::Raster;
+    use crate::mesh::MeshOptions;
+
+    #[test]
+    fn bvh_is_shareable_between_threads() {
+        fn is_sync<T: Sync + Send>() {}
+        is_sync::<Bvh>();
+    }
+
+    #[test]
+    fn pick_on_a_slanted_plane_returns_the_analytic_point() {
+        let camera = Camera::from_focal(300.0, 120, 90).unwrap();
+        let n = Vec3::new(0.2, 0.6, 0.8).normalize();
+        let d = -2.5; // n·p = d
+        let depth = Raster::from_fn(120, 90, |x, y| {
+            let dir = camera
+                .unproject(x as f32 + 0.5, y as f32 + 0.5, 1.0)
+                .unwrap();
+            d / n.dot(dir)
+        });
+        let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default()).unwrap();
+        let bvh = Bvh::new(&mesh);
+        for pixel in [
+            Vec2::new(60.3, 45.7),
+            Vec2::new(10.0, 80.2),
+            Vec2::new(111.9, 3.1),
+        ] {
+            let hit = pick(&bvh, &camera, pixel).unwrap();
+            let dir = camera.ray_direction(pixel.x, pixel.y);
+            let t = d / n.dot(dir);
+            let truth = dir * t;
+            assert!(
+                (hit.point - truth).length() < 1e-4 * t,
+                "{} vs {truth}",
+                hit.point
+            );
+            assert!((hit.t - t).abs() < 1e-4 * t);
+            assert!(hit.normal.angle_between(n).to_degrees() < 0.05);
+            assert!(hit.geometric_normal.angle_between(n).to_degrees() < 0.05);
+        }
+        // Outside the image the plane's mesh ends: a ray far off misses.
+        assert!(pick(&bvh, &camera, Vec2::new(-500.0, 45.0)).is_none());
+        assert!(pick(&bvh, &camera, Vec2::new(f32::NAN, 45.0)).is_none());
+    }
+
+    #[test]
+    fn occlusion_and_batches_agree_with_single_queries() {
+        let camera = Camera::from_focal(100.0, 40, 40).unwrap();
+        let depth = Raster::filled(40, 40, 2.0);
+        let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default()).unwrap();
+        let bvh = Bvh::new(&mesh);
+        let toward_wall = Ray {
+            origin: Vec3::new(0.0, 0.0, -1.0),
+            direction: Vec3::NEG_Z,
+            t_max: 5.0,
+        };
+        assert!(bvh.occluded(&toward_wall));
+        assert!(!bvh.occluded(&Ray {
+            t_max: 0.9,
+            ..toward_wall
+        }));
+        assert!(!bvh.occluded(&Ray {
+            direction: Vec3::Z,
+            ..toward_wall
+        }));
+        assert!(!bvh.occluded(&Ray {
+            direction: Vec3::ZERO,
+            ..toward_wall
+        }));
+        let rays: Vec<Ray> = (0..200)
+            .map(|i| {
+                let a = i as f32 * 0.05;
+                Ray::new(Vec3::ZERO, Vec3::new(a.sin() * 0.3, a.cos() * 0.3, -1.0))
+            })
+            .collect();
+        let hits = bvh.closest_hits(&rays);
+        let occl = bvh.occluded_batch(&rays);
+        for ((r, h), o) in rays.iter().zip(&hits).zip(&occl) {
+            assert_eq!(*h, bvh.closest_hit(r));
+            assert_eq!(h.is_some(), *o);
+            if let Some(h) = h {
+                assert!((h.point.z + 2.0).abs() < 1e-5);
+            }
+        }
+        // Axis-aligned rays with negative-zero components (a host's ray straight down).
+        let straight = Ray::new(Vec3::new(0.1, 0.2, 0.0), Vec3::new(-0.0, -0.0, -1.0));
+        assert!(bvh.closest_hit(&straight).is_some());
+        assert!(bvh.occluded(&straight));
+        let empty = Bvh::from_triangles(&[]);
+        assert!(empty.closest_hit(&toward_wall).is_none());
+        assert!(!empty.occluded(&toward_wall));
+    }
+
+    #[test]
+    fn closest_hit_takes_the_nearer_of_two_layers() {
+        let quad = |z: f32| {
+            [
+                [
+                    Vec3::new(-1.0, -1.0, z),
+                    Vec3::new(1.0, -1.0, z),
+                    Vec3::new(1.0, 1.0, z),
+                ],
+                [
+                    Vec3::new(-1.0, -1.0, z),
+                    Vec3::new(1.0, 1.0, z),
+                    Vec3::new(-1.0, 1.0, z),
+                ],
+            ]
+        };
+        let mut tris = quad(-3.0).to_vec();
+        tris.extend(quad(-2.0));
+        let bvh = Bvh::from_triangles(&tris);
+        let hit = bvh
+            .closest_hit(&Ray::new(Vec3::ZERO, Vec3::new(0.1, 0.1, -1.0)))
+            .unwrap();
+        assert!((hit.t - 2.0).abs() < 1e-5);
+        assert!((hit.geometric_normal - Vec3::Z).length() < 1e-6);
+    }
+}

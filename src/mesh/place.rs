@@ -1,0 +1,237 @@
+//! Placement: a model transform that stands an object on the scene surface under a pixel (or
+//! under a host's own ray), upright, its base touching the surface, at a real size in metres.
+//!
+//! The object is taken in its own frame as glTF has it: +Y up, +Z its front, its base at `y = 0`
+//! centred on the origin, and size 1 — or, with [`PlaceOptions::model_bounds`], any bounding box,
+//! which is then moved so its bottom centre is the origin and scaled so its largest side is 1.
+//! The ray's hit is snapped onto the detected support plane under it when there is one (its fitted
+//! plane is more accurate than any single mesh triangle).
+
+use glam::{Mat3, Mat4, Vec2, Vec3};
+
+use super::bvh::{camera_ray, Bvh, Hit, Ray};
+use super::surfaces::Surfaces;
+use crate::camera::Camera;
+use crate::error::{Error, Result};
+
+/// Which way the placed object's +Y points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Orientation {
+    /// Gravity up on surfaces within `max_tilt_deg` of horizontal (a vase on a table), the surface
+    /// normal elsewhere (a picture on a wall).
+    Auto,
+    /// Always the estimated gravity up.
+    Gravity,
+    /// Always the surface normal.
+    SurfaceNormal,
+}
+
+/// Options of [`place`] and [`place_on_ray`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PlaceOptions {
+    /// Default [`Orientation::Auto`].
+    pub orientation: Orientation,
+    /// For [`Orientation::Auto`]: surfaces tilted less than this from horizontal count as
+    /// horizontal. Default 20°.
+    pub max_tilt_deg: f32,
+    /// Snap the hit onto a detected surface's plane when it lies within this fraction of its
+    /// distance from the plane and faces the same way (within 20°). Default 0.03; 0 disables.
+    pub snap_tolerance: f32,
+    /// The object's bounding box in its own frame (min, max), when not already unit-sized with its
+    /// base centred at the origin.
+    pub model_bounds: Option<[Vec3; 2]>,
+}
+
+impl Default for PlaceOptions {
+    fn default() -> Self {
+        PlaceOptions {
+            orientation: Orientation::Auto,
+            max_tilt_deg: 20.0,
+            snap_tolerance: 0.03,
+            model_bounds: None,
+        }
+    }
+}
+
+/// Where and how an object was placed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Placement {
+    /// Model → world transform (column-major, glam/glTF/OpenGL convention).
+    pub transform: Mat4,
+    /// The point the object's base stands on, metres.
+    pub base: Vec3,
+    /// The object's up axis in the world (unit).
+    pub up: Vec3,
+    /// Normal of the surface under the object (unit).
+    pub surface_normal: Vec3,
+    /// Index into [`Surfaces::surfaces`] of the plane the hit was snapped to, if any.
+    pub surface: Option<usize>,
+    /// The mesh hit before snapping.
+    pub hit: Hit,
+}
+
+/// Places an object of largest size `size_m` metres, turned by `yaw_rad` about its up axis (0 =
+/// its front faces the camera), on the surface seen at image position `pixel`.
+///
+/// # Errors
+/// `InvalidArgument` for a size that is not finite and > 0, a non-finite yaw or pixel, bad
+/// options, or a pixel with no surface under it (a hole in the depth).
+pub fn place(
+    bvh: &Bvh,
+    camera: &Camera,
+    surfaces: &Surfaces,
+    pixel: Vec2,
+    size_m: f32,
+    yaw_rad: f32,
+    options: &PlaceOptions,
+) -> Result<Placement> {
+    if !pixel.is_finite() {
+        return Err(Error::invalid(format!(
+            "place: pixel ({}, {}) is not finite",
+            pixel.x, pixel.y
+        )));
+    }
+    let ray = camera_ray(camera, pixel);
+    place_on_ray(bvh, surfaces, &ray, size_m, yaw_rad, options).map_err(|e| match e {
+        Error::InvalidArgument(m) if m.contains("hits no surface") => Error::invalid(format!(
+            "place: no scene surface at pixel ({}, {}) (no depth there)",
+            pixel.x, pixel.y
+        )),
+        other => other,
+    })
+}
+
+/// [`place`] for a host's own ray (e.g. from a controller or a gaze), in the camera (= world)
+/// frame. With `yaw_rad = 0` the object's front faces back along the ray.
+///
+/// # Errors
+/// As [`place`]; `InvalidArgument` when the ray hits no surface or is not finite.
+pub fn place_on_ray(
+    bvh: &Bvh,
+    surfaces: &Surfaces,
+    ray: &Ray,
+    size_m: f32,
+    yaw_rad: f32,
+    options: &PlaceOptions,
+) -> Result<Placement> {
+    if !(size_m.is_finite() && size_m > 0.0) {
+        return Err(Error::invalid(format!(
+            "place: size must be finite and > 0 metres, got {size_m}"
+        )));
+    }
+    if !yaw_rad.is_finite() {
+        return Err(Error::invalid(format!(
+            "place: yaw {yaw_rad} is not finite"
+        )));
+    }
+    let tilt_ok = (0.0..=90.0).contains(&options.max_tilt_deg);
+    let snap_ok = options.snap_tolerance.is_finite() && options.snap_tolerance >= 0.0;
+    if !(tilt_ok && snap_ok) {
+        return Err(Error::invalid(format!(
+            "place: max_tilt_deg must be in [0, 90] and snap_tolerance finite ≥ 0, got {} and {}",
+            options.max_tilt_deg, options.snap_tolerance
+        )));
+    }
+    let model = model_normalisation(options.model_bounds)?;
+    if !(ray.origin.is_finite() && ray.direction.is_finite() && ray.direction.length() > 0.0) {
+        return Err(Error::invalid(
+            "place: the ray is not finite or has no direction",
+        ));
+    }
+    let hit = bvh
+        .closest_hit(ray)
+        .ok_or_else(|| Error::invalid("place: the ray hits no surface of the scene"))?;
+
+    // Snap onto the detected plane under the hit, if one agrees.
+    let dir = ray.direction.normalize();
+    let distance = (hit.point - ray.origin).length();
+    let cos20 = 20f32.to_radians().cos();
+    let snapped = surfaces
+        .surfaces
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| {
+            s.distance(hit.point).abs() <= options.snap_tolerance * distance
+                && s.normal.dot(hit.normal) >= cos20
+        })
+        .min_by(|a, b| {
+            a.1.distance(hit.point)
+                .abs()
+                .total_cmp(&b.1.distance(hit.point).abs())
+        })
+        .and_then(|(i, s)| {
+            // Exact ray–plane intersection.
+            let denom = s.normal.dot(dir);
+            if denom.abs() < 1e-6 {
+                return None;
+            }
+            let t = (s.offset - s.normal.dot(ray.origin)) / denom;
+            (t > 0.0 && t.is_finite()).then(|| (i, ray.origin + dir * t, s.normal))
+        });
+    let (surface, base, normal) = match snapped {
+        Some((i, p, n)) => (Some(i), p, n),
+        None => (None, hit.point, hit.normal),
+    };
+
+    let up = match options.orientation {
+        Orientation::Gravity => surfaces.up,
+        Orientation::SurfaceNormal => normal,
+        Orientation::Auto => {
+            if normal.angle_between(surfaces.up).to_degrees() <= options.max_tilt_deg {
+                surfaces.up
+            } else {
+                normal
+            }
+        }
+    };
+    // Front: towards where the ray came from, flattened onto the plane ⟂ up; looking straight
+    // along up, the image's "down" direction instead.
+    let flatten = |v: Vec3| (v - up * up.dot(v)).try_normalize();
+    let front = flatten(-dir)
+        .filter(|_| dir.dot(up).abs() < 0.999)
+        .or_else(|| flatten(Vec3::NEG_Y))
+        .or_else(|| flatten(Vec3::Z))
+        .unwrap_or_else(|| up.any_orthonormal_vector());
+    let front = glam::Quat::from_axis_angle(up, yaw_rad) * front;
+    let x = up.cross(front).normalize();
+    let rotation = Mat3::from_cols(x, up, front);
+    let transform = Mat4::from_translation(base)
+        * Mat4::from_mat3(rotation)
+        * Mat4::from_scale(Vec3::splat(size_m))
+        * model;
+    if !transform.is_finite() {
+        return Err(Error::invalid(format!(
+            "place: size {size_m} m at {base} gives a transform that does not fit f32"
+        )));
+    }
+    Ok(Placement {
+        transform,
+        base,
+        up,
+        surface_normal: normal,
+        surface,
+        hit,
+    })
+}
+
+/// Moves a model's bottom centre to the origin and scales its largest side to 1.
+fn model_normalisation(bounds: Option<[Vec3; 2]>) -> Result<Mat4> {
+    let Some([lo, hi]) = bounds else {
+        return Ok(Mat4::IDENTITY);
+    };
+    let size = hi - lo;
+    let largest = size.max_element();
+    if !(lo.is_finite() && hi.is_finite() && size.min_element() >= 0.0 && largest > 0.0) {
+        return Err(Error::invalid(format!(
+            "place: model bounds min {lo} max {hi} are not a finite box of positive size"
+        )));
+    }
+    let bottom_centre = Vec3::new((lo.x + hi.x) / 2.0, lo.y, (lo.z + hi.z) / 2.0);
+    Ok(Mat4::from_scale(Vec3::splat(1.0 / largest)) * Mat4::from_translation(-bottom_centre))
+}
+
+/// The image position a placed object's base projects to (handy for hosts and tests).
+pub fn base_pixel(camera: &Camera, placement: &Placement) -> Option<Vec2> {
+    camera.project(placement.base).map(|(px, _)| px)
+}

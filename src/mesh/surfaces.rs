@@ -1,0 +1,653 @@
+//! Support surfaces (thesis §6.2): the planes of the scene that objects can rest on or hang from,
+//! found by RANSAC on oriented points (points and normals of the scene mesh) with least-squares
+//! refinement and a connectivity check in the image; and the gravity "up" estimated from the
+//! largest near-horizontal planes.
+//!
+//! Each round samples planes through three points whose normals agree with the plane, scores them
+//! by the points within a *depth-relative* distance and a normal tolerance, refits the best one by
+//! principal component analysis, keeps only its largest piece that is connected in the image (a
+//! table top and a chair seat at the same height are two surfaces), and removes it from the pool.
+//!
+//! "Up" is the inlier-weighted mean normal of the near-horizontal planes (normals within 50° of the
+//! camera's +Y, or of −Y for ceilings) that agree within 10° with the largest of them; with no such
+//! plane it falls back to the camera's +Y (the image's "up", i.e. −image-y).
+
+use glam::{DVec3, Vec2, Vec3};
+
+use super::SceneMesh;
+use crate::camera::Camera;
+use crate::error::{Error, Result};
+
+/// How surfaces are searched for.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SurfaceOptions {
+    /// At most this many surfaces, largest first. Default 8.
+    pub max_surfaces: usize,
+    /// A point is on a plane when its distance is below this fraction of its depth. Default 0.01.
+    pub distance_tolerance: f32,
+    /// …and its normal within this many degrees of the plane's. Default 15°.
+    pub normal_tolerance_deg: f32,
+    /// Smallest surface, as a fraction of the points. Default 0.01.
+    pub min_fraction: f32,
+    /// RANSAC hypotheses per surface. Default 300.
+    pub iterations: usize,
+    /// Points used (the mesh's vertices are thinned evenly beyond this). Default 60 000.
+    pub max_points: usize,
+    /// Seed of the sampler: the result is deterministic for a given seed.
+    pub seed: u64,
+}
+
+impl Default for SurfaceOptions {
+    fn default() -> Self {
+        SurfaceOptions {
+            max_surfaces: 8,
+            distance_tolerance: 0.01,
+            normal_tolerance_deg: 15.0,
+            min_fraction: 0.01,
+            iterations: 300,
+            max_points: 60_000,
+            seed: 0x5eed,
+        }
+    }
+}
+
+impl SurfaceOptions {
+    /// Checks every field.
+    ///
+    /// # Errors
+    /// `InvalidArgument` naming the bad field.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(Error::invalid(format!("surface options: {m}")));
+        if !(self.distance_tolerance.is_finite() && self.distance_tolerance > 0.0) {
+            return bad(format!(
+                "distance_tolerance must be finite and > 0, got {}",
+                self.distance_tolerance
+            ));
+        }
+        if !(self.normal_tolerance_deg > 0.0 && self.normal_tolerance_deg < 90.0) {
+            return bad(format!(
+                "normal_tolerance_deg must be in (0, 90), got {}",
+                self.normal_tolerance_deg
+            ));
+        }
+        if !(self.min_fraction > 0.0 && self.min_fraction <= 1.0) {
+            return bad(format!(
+                "min_fraction must be in (0, 1], got {}",
+                self.min_fraction
+            ));
+        }
+        if self.iterations == 0 || self.max_points < 3 {
+            return bad("iterations must be ≥ 1 and max_points ≥ 3".into());
+        }
+        Ok(())
+    }
+}
+
+/// Orientation of a surface relative to the estimated up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SurfaceKind {
+    /// Faces up within 10° (floor, table top): objects can stand on it.
+    Horizontal,
+    /// Faces down within 10° (ceiling, underside of a shelf).
+    Overhead,
+    /// Within 10° of vertical (wall, cupboard front).
+    Vertical,
+    /// Anything else.
+    Slanted,
+}
+
+/// Where the up vector came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UpSource {
+    /// From the near-horizontal planes found.
+    Planes,
+    /// No near-horizontal plane: the camera's +Y.
+    CameraFallback,
+}
+
+/// A planar surface of the scene.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SupportSurface {
+    /// Unit normal, on the side facing the camera.
+    pub normal: Vec3,
+    /// Mean of the inlier points, metres (on the plane).
+    pub centroid: Vec3,
+    /// Plane offset: points `p` on the plane satisfy `normal · p = offset`.
+    pub offset: f32,
+    /// Number of mesh vertices on the surface (before thinning beyond `max_points`, scaled back).
+    pub inliers: usize,
+    /// Flatness: root-mean-square distance of the inliers from the plane, metres.
+    pub rms_m: f32,
+    /// Area of the extent polygon, m².
+    pub area_m2: f32,
+    /// Extent: convex hull of the inliers on the plane, metres, counter-clockwise seen along
+    /// −normal.
+    pub polygon: Vec<Vec3>,
+    /// The same polygon projected into the image, pixels.
+    pub polygon_image: Vec<Vec2>,
+    /// Orientation relative to [`Surfaces::up`].
+    pub kind: SurfaceKind,
+}
+
+impl SupportSurface {
+    /// Signed distance of `p` from the plane (positive on the camera's side), metres.
+    pub fn distance(&self, p: Vec3) -> f32 {
+        self.normal.dot(p) - self.offset
+    }
+
+    /// Whether the image position lies inside the surface's image polygon.
+    pub fn contains_pixel(&self, pixel: Vec2) -> bool {
+        point_in_polygon(pixel, &self.polygon_image)
+    }
+}
+
+/// The surfaces found, largest first, and the gravity "up".
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Surfaces {
+    /// Planes, largest (most inliers) first.
+    pub surfaces: Vec<SupportSurface>,
+    /// Unit up vector in the camera (= world) frame.
+    pub up: Vec3,
+    /// Whether `up` came from planes or is the camera fallback.
+    pub up_source: UpSource,
+}
+
+/// Finds the planar surfaces of a scene mesh (preferably the unsimplified grid, so that inlier
+/// counts are proportional to image area) and estimates the up vector.
+///
+/// A mesh with no triangles gives no surfaces and the fallback up.
+///
+/// # Errors
+/// `InvalidArgument` for bad options or camera.
+pub fn detect_surfaces(
+    mesh: &SceneMesh,
+    camera: &Camera,
+    options: &SurfaceOptions,
+) -> Result<Surfaces> {
+    options.validate()?;
+    camera.validate()?;
+    let n_all = mesh.positions.len();
+    let stride = n_all.div_ceil(options.max_points).max(1);
+    let mut points = Vec::new();
+    if mesh.normals.len() == n_all {
+        for k in (0..n_all).step_by(stride) {
+            let p = Vec3::from(mesh.positions[k]);
+            let n = Vec3::from(mesh.normals[k]);
+            if let Some((px, depth)) = camera.project(p) {
+                if n.is_finite() && (n.length() - 1.0).abs() < 1e-3 {
+                    points.push(Point { p, n, px, depth });
+                }
+            }
+        }
+    }
+    let min_inliers = ((points.len() as f32 * options.min_fraction).ceil() as usize).max(3);
+    let cos_tol = options.normal_tolerance_deg.to_radians().cos();
+    let mut rng = XorShift(options.seed | 1);
+    let mut remaining: Vec<usize> = (0..points.len()).collect();
+    let mut found: Vec<(Plane, Vec<usize>)> = Vec::new();
+    let grid = ImageGrid::new(camera);
+
+    while found.len() < options.max_surfaces && remaining.len() >= min_inliers {
+        let Some(mut plane) = best_hypothesis(&points, &remaining, options, cos_tol, &mut rng)
+        else {
+            break;
+        };
+        let mut inliers = Vec::new();
+        for _ in 0..3 {
+            inliers = remaining
+                .iter()
+                .copied()
+                .filter(|&i| plane.accepts(&points[i], options.distance_tolerance, cos_tol))
+                .collect();
+            match fit_plane(&points, &inliers) {
+                Some(p) => plane = p,
+                None => break,
+            }
+        }
+        let piece = grid.largest_component(&points, &inliers);
+        if piece.len() < min_inliers {
+            break;
+        }
+        if let Some(p) = fit_plane(&points, &piece) {
+            plane = p;
+        }
+        let mut on = vec![false; points.len()];
+        for &i in &piece {
+            on[i] = true;
+        }
+        remaining.retain(|&i| !on[i]);
+        found.push((plane, piece));
+    }
+
+    let (up, up_source) = estimate_up(&found);
+    let mut surfaces: Vec<SupportSurface> = found
+        .iter()
+        .map(|(plane, piece)| describe(plane, piece, &points, camera, up, stride))
+        .collect();
+    surfaces.sort_by_key(|s| std::cmp::Reverse(s.inliers));
+    Ok(Surfaces {
+        surfaces,
+        up,
+        up_source,
+    })
+}
+
+#[derive(Clone, Copy)]
+struct Point {
+    p: Vec3,
+    n: Vec3,
+    px: Vec2,
+    depth: f32,
+}
+
+/// `normal · p = offset`, normal facing the camera.
+#[derive(Clone, Copy, Debug)]
+struct Plane {
+    normal: Vec3,
+    offset: f32,
+}
+
+impl Plane {
+    fn through(a: Vec3, b: Vec3, c: Vec3) -> Option<Plane> {
+        let n = (b - a).cross(c - a).try_normalize()?;
+        Some(Plane::facing_camera(n, n.dot(a)))
+    }
+
+    fn facing_camera(normal: Vec3, offset: f32) -> Plane {
+        // The camera (origin) is on the positive side: normal · 0 − offset > 0.
+        if offset > 0.0 {
+            Plane {
+                normal: -normal,
+                offset: -offset,
+            }
+        } else {
+            Plane { normal, offset }
+        }
+    }
+
+    fn accepts(&self, q: &Point, distance_tolerance: f32, cos_tol: f32) -> bool {
+        (self.normal.dot(q.p) - self.offset).abs() <= distance_tolerance * q.depth
+            && self.normal.dot(q.n).abs() >= cos_tol
+    }
+}
+
+fn best_hypothesis(
+    points: &[Point],
+    remaining: &[usize],
+    options: &SurfaceOptions,
+    cos_tol: f32,
+    rng: &mut XorShift,
+) -> Option<Plane> {
+    const SCORE_SAMPLES: usize = 3000;
+    let sample: Vec<usize> = if remaining.len() <= SCORE_SAMPLES {
+        remaining.to_vec()
+    } else {
+        (0..SCORE_SAMPLES)
+            .map(|_| remaining[rng.below(remaining.len())])
+            .collect()
+    };
+    let mut best: Option<(usize, Plane)> = None;
+    for _ in 0..options.iterations {
+        let [a, b, c] = [0; 3].map(|_| points[remaining[rng.below(remaining.len())]]);
+        let Some(plane) = Plane::through(a.p, b.p, c.p) else {
+            continue;
+        };
+        if [a, b, c]
+            .iter()
+            .any(|q| plane.normal.dot(q.n).abs() < cos_tol)
+        {
+            continue;
+        }
+        let score = sample
+            .iter()
+            .filter(|&&i| plane.accepts(&points[i], options.distance_tolerance, cos_tol))
+            .count();
+        if best.is_none_or(|(s, _)| score > s) {
+            best = Some((score, plane));
+        }
+    }
+    best.map(|(_, p)| p)
+}
+
+/// Least-squares plane (smallest principal axis of the covariance), `None` for < 3 points or a
+/// degenerate (collinear) set.
+fn fit_plane(points: &[Point], idx: &[usize]) -> Option<Plane> {
+    if idx.len() < 3 {
+        return None;
+    }
+    let mean = idx.iter().map(|&i| points[i].p.as_dvec3()).sum::<DVec3>() / idx.len() as f64;
+    let mut cov = [[0.0f64; 3]; 3];
+    for &i in idx {
+        let d = points[i].p.as_dvec3() - mean;
+        let d = [d.x, d.y, d.z];
+        for r in 0..3 {
+            for c in 0..3 {
+                cov[r][c] += d[r] * d[c];
+            }
+        }
+    }
+    let (values, vectors) = symmetric_eigen(cov);
+    let smallest = (0..3).min_by(|&a, &b| values[a].total_cmp(&values[b]))?;
+    let others: Vec<f64> = (0..3)
+        .filter(|&k| k != smallest)
+        .map(|k| values[k])
+        .collect();
+    if others.iter().any(|&v| v.is_nan() || v <= 0.0) {
+        return None;
+    }
+    let n = vectors[smallest].try_normalize()?;
+    let n32 = n.as_vec3();
+    Some(Plane::facing_camera(n32, n.dot(mean) as f32))
+}
+
+/// Eigenvalues and eigenvectors of a symmetric 3×3 matrix (cyclic Jacobi rotations).
+fn symmetric_eigen(mut a: [[f64; 3]; 3]) -> ([f64; 3], [DVec3; 3]) {
+    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _ in 0..50 {
+        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
+        let scale = a[0][0].abs() + a[1][1].abs() + a[2][2].abs();
+        if off <= 1e-15 * scale || off == 0.0 {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if a[p][q].abs() < 1e-300 {
+                continue;
+            }
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let t = if theta == 0.0 { 1.0 } else { t };
+            let c = 1.0 / (t * t + 1.0).sqrt();
+            let s = t * c;
+            for row in a.iter_mut() {
+                let (akp, akq) = (row[p], row[q]);
+                row[p] = c * akp - s * akq;
+                row[q] = s * akp + c * akq;
+            }
+            let (row_p, row_q) = (a[p], a[q]);
+            for k in 0..3 {
+                a[p][k] = c * row_p[k] - s * row_q[k];
+                a[q][k] = s * row_p[k] + c * row_q[k];
+            }
+            for row in v.iter_mut() {
+                let (vp, vq) = (row[p], row[q]);
+                row[p] = c * vp - s * vq;
+                row[q] = s * vp + c * vq;
+            }
+        }
+    }
+    let col = |k: usize| DVec3::new(v[0][k], v[1][k], v[2][k]);
+    ([a[0][0], a[1][1], a[2][2]], [col(0), col(1), col(2)])
+}
+
+/// Occupancy grid over the image for connectivity: cells about 1/100 of the larger image side.
+struct ImageGrid {
+    cell: f32,
+    cols: usize,
+    rows: usize,
+}
+
+impl ImageGrid {
+    fn new(camera: &Camera) -> ImageGrid {
+        let cell = (camera.width.max(camera.height) as f32 / 100.0).max(1.0);
+        ImageGrid {
+            cell,
+            cols: (camera.width as f32 / cell).ceil() as usize + 1,
+            rows: (camera.height as f32 / cell).ceil() as usize + 1,
+        }
+    }
+
+    fn cell_of(&self, px: Vec2) -> usize {
+        let c = ((px.x / self.cell).max(0.0) as usize).min(self.cols - 1);
+        let r = ((px.y / self.cell).max(0.0) as usize).min(self.rows - 1);
+        r * self.cols + c
+    }
+
+    /// The inliers in the largest 8-connected group of occupied cells (by inlier count).
+    fn largest_component(&self, points: &[Point], inliers: &[usize]) -> Vec<usize> {
+        let mut count = vec![0u32; self.cols * self.rows];
+        for &i in inliers {
+            count[self.cell_of(points[i].px)] += 1;
+        }
+        let mut label = vec![u32::MAX; count.len()];
+        let mut sizes = Vec::new();
+        let mut stack = Vec::new();
+        for start in 0..count.len() {
+            if count[start] == 0 || label[start] != u32::MAX {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            let mut size = 0u64;
+            label[start] = id;
+            stack.push(start);
+            while let Some(k) = stack.pop() {
+                size += count[k] as u64;
+                let (r, c) = ((k / self.cols) as i64, (k % self.cols) as i64);
+                for dr in -1..=1 {
+                    for dc in -1..=1 {
+                        let (rr, cc) = (r + dr, c + dc);
+                        if rr < 0 || cc < 0 || rr >= self.rows as i64 || cc >= self.cols as i64 {
+                            continue;
+                        }
+                        let kk = rr as usize * self.cols + cc as usize;
+                        if count[kk] > 0 && label[kk] == u32::MAX {
+                            label[kk] = id;
+                            stack.push(kk);
+                        }
+                    }
+                }
+            }
+            sizes.push(size);
+        }
+        let Some(best) = (0..sizes.len()).max_by_key(|&k| sizes[k]) else {
+            return Vec::new();
+        };
+        inliers
+            .iter()
+            .copied()
+            .filter(|&i| label[self.cell_of(points[i].px)] == best as u32)
+            .collect()
+    }
+}
+
+fn estimate_up(found: &[(Plane, Vec<usize>)]) -> (Vec3, UpSource) {
+    let cos50 = 50f32.to_radians().cos();
+    // Candidate up directions: normals of near-horizontal planes, ceilings flipped.
+    let candidates: Vec<(Vec3, usize)> = found
+        .iter()
+        .filter_map(|(plane, piece)| {
+            let n = plane.normal;
+            if n.y >= cos50 {
+                Some((n, piece.len()))
+            } else if -n.y >= cos50 {
+                Some((-n, piece.len()))
+            } else {
+                None
+            }
+        })
+        .collect();
+    let Some(&(reference, _)) = candidates.iter().max_by_key(|c| c.1) else {
+        return (Vec3::Y, UpSource::CameraFallback);
+    };
+    let cos10 = 10f32.to_radians().cos();
+    let sum: Vec3 = candidates
+        .iter()
+        .filter(|(n, _)| n.dot(reference) >= cos10)
+        .map(|(n, w)| *n * *w as f32)
+        .sum();
+    match sum.try_normalize() {
+        Some(up) => (up, UpSource::Planes),
+        None => (Vec3::Y, UpSource::CameraFallback),
+    }
+}
+
+fn describe(
+    plane: &Plane,
+    piece: &[usize],
+    points: &[Point],
+    camera: &Camera,
+    up: Vec3,
+    stride: usize,
+) -> SupportSurface {
+    let n = plane.normal;
+    let project = |p: Vec3| p - n * (n.dot(p) - plane.offset);
+    let centroid = project(piece.iter().map(|&i| points[i].p).sum::<Vec3>() / piece.len() as f32);
+    let rms = (piece
+        .iter()
+        .map(|&i| {
+            let d = (n.dot(points[i].p) - plane.offset) as f64;
+            d * d
+        })
+        .sum::<f64>()
+        / piece.len() as f64)
+        .sqrt() as f32;
+    // Plane basis with e1 × e2 = n, so hulls are counter-clockwise seen along −n.
+    let e1 = n.any_orthonormal_vector();
+    let e2 = n.cross(e1);
+    let flat: Vec<Vec2> = piece
+        .iter()
+        .map(|&i| {
+            let d = points[i].p - centroid;
+            Vec2::new(d.dot(e1), d.dot(e2))
+        })
+        .collect();
+    let hull = convex_hull(flat);
+    let area = 0.5
+        * hull
+            .iter()
+            .zip(hull.iter().cycle().skip(1))
+            .map(|(a, b)| a.perp_dot(*b))
+            .sum::<f32>()
+            .abs();
+    let polygon: Vec<Vec3> = hull
+        .iter()
+        .map(|q| centroid + e1 * q.x + e2 * q.y)
+        .collect();
+    let polygon_image = polygon
+        .iter()
+        .filter_map(|p| camera.project(*p).map(|(px, _)| px))
+        .collect();
+    let c = n.dot(up);
+    let sin10 = 10f32.to_radians().sin();
+    let cos10 = 10f32.to_radians().cos();
+    let kind = if c >= cos10 {
+        SurfaceKind::Horizontal
+    } else if c <= -cos10 {
+        SurfaceKind::Overhead
+    } else if c.abs() <= sin10 {
+        SurfaceKind::Vertical
+    } else {
+        SurfaceKind::Slanted
+    };
+    SupportSurface {
+        normal: n,
+        centroid,
+        offset: plane.offset,
+        inliers: piece.len() * stride,
+        rms_m: rms,
+        area_m2: area,
+        polygon,
+        polygon_image,
+        kind,
+    }
+}
+
+/// Convex hull (Andrew's monotone chain), counter-clockwise, without collinear points.
+fn convex_hull(mut pts: Vec<Vec2>) -> Vec<Vec2> {
+    pts.retain(|p| p.is_finite());
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: Vec2, a: Vec2, b: Vec2| (a - o).perp_dot(b - o);
+    let mut lower: Vec<Vec2> = Vec::new();
+    for &p in &pts {
+        while lower.len() >= 2 && cross(lower[lower.len() - 2], lower[lower.len() - 1], p) <= 0.0 {
+            lower.pop();
+        }
+        lower.push(p);
+    }
+    let mut upper: Vec<Vec2> = Vec::new();
+    for &p in pts.iter().rev() {
+        while upper.len() >= 2 && cross(upper[upper.len() - 2], upper[upper.len() - 1], p) <= 0.0 {
+            upper.pop();
+        }
+        upper.push(p);
+    }
+    lower.pop();
+    upper.pop();
+    lower.extend(upper);
+    lower
+}
+
+/// Even–odd rule.
+fn point_in_polygon(p: Vec2, poly: &[Vec2]) -> bool {
+    let mut inside = false;
+    for (i, a) in poly.iter().enumerate() {
+        let b = poly[(i + 1) % poly.len()];
+        if (a.y > p.y) != (b.y > p.y) {
+            let x = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
+            if p.x < x {
+                inside = !inside;
+            }
+        }
+    }
+    inside
+}
+
+/// A small deterministic generator (xorshift64*); quality is ample for RANSAC sampling.
+pub(crate) struct XorShift(pub(crate) u64);
+
+impl XorShift {
+    pub(crate) fn next_u64(&mut self) -> u64 {
+        let mut x = self.0;
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        self.0 = x;
+        x.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+
+    pub(crate) fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+
+    /// Uniform in [0, 1).
+    #[cfg(test)]
+    pub(crate) fn unit(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jacobi_finds_the_plane_normal() {
+        let cov = [[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 0.01]];
+        let (vals, vecs) = symmetric_eigen(cov);
+        for k in 0..3 {
+            let m = glam::DMat3::from_cols_array_2d(&cov);
+            let r = m * vecs[k] - vecs[k] * vals[k];
+            assert!(r.length() < 1e-9, "{r}");
+        }
+    }
+
+    #[test]
+    fn hull_and_point_in_polygon() {
+        let pts = vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(2.0, 0.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(2.0, 2.0),
+            Vec2::new(0.0, 2.0),
+        ];
+        let hull = convex_hull(pts);
+        assert_eq!(hull.len(), 4);
+        assert!(point_in_polygon(Vec2::new(1.0, 1.5), &hull));
+        assert!(!point_in_polygon(Vec2::new(3.0, 1.0), &hull));
+    }
+}

@@ -1,0 +1,421 @@
+//! Reconstruction on a synthetic room with exact analytic depth: a floor, a table (a solid box)
+//! and a back wall, seen by a camera pitched down 20° — normals, surfaces, gravity, picking and
+//! placement against the truth.
+
+use glam::{Mat3, Vec2, Vec3};
+use parallax::camera::Camera;
+use parallax::image::Raster;
+use parallax::mesh::{
+    detect_surfaces, pick, place, place_on_ray, Bvh, MeshOptions, PlaceOptions, Ray, SceneMesh,
+    SurfaceKind, SurfaceOptions, Surfaces, UpSource,
+};
+
+const FLOOR_Y: f32 = -1.4;
+const TABLE_Y: f32 = -0.65;
+const TABLE_MIN: Vec3 = Vec3::new(-0.5, FLOOR_Y, -3.3);
+const TABLE_MAX: Vec3 = Vec3::new(0.6, TABLE_Y, -2.1);
+const WALL_Z: f32 = -5.0;
+
+/// Which analytic surface a pixel sees.
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum Label {
+    Floor,
+    TableTop,
+    TableSide,
+    Wall,
+}
+
+struct Room {
+    camera: Camera,
+    /// World (gravity-aligned) → camera rotation; the camera is at the world origin.
+    to_camera: Mat3,
+    depth: Raster<f32>,
+    labels: Raster<Label>,
+}
+
+impl Room {
+    fn up(&self) -> Vec3 {
+        self.to_camera * Vec3::Y
+    }
+}
+
+fn intersect(origin: Vec3, dir: Vec3) -> (f32, Label) {
+    let mut best = (f32::INFINITY, Label::Wall);
+    let mut consider = |t: f32, label: Label| {
+        if t > 0.0 && t < best.0 {
+            best = (t, label);
+        }
+    };
+    if dir.y < 0.0 {
+        consider((FLOOR_Y - origin.y) / dir.y, Label::Floor);
+    }
+    if dir.z < 0.0 {
+        consider((WALL_Z - origin.z) / dir.z, Label::Wall);
+    }
+    // Slab test for the table box.
+    let inv = dir.recip();
+    let t0 = (TABLE_MIN - origin) * inv;
+    let t1 = (TABLE_MAX - origin) * inv;
+    let (lo, hi) = (t0.min(t1), t0.max(t1));
+    let t_near = lo.max_element();
+    if t_near <= hi.min_element() && t_near > 0.0 {
+        let p = origin + dir * t_near;
+        let label = if (p.y - TABLE_Y).abs() < 1e-4 {
+            Label::TableTop
+        } else {
+            Label::TableSide
+        };
+        consider(t_near, label);
+    }
+    best
+}
+
+fn room(width: u32, height: u32, focal: f32) -> Room {
+    let camera = Camera::from_focal(focal, width, height).unwrap();
+    let to_camera = Mat3::from_rotation_x(20f32.to_radians()); // pitched down by 20°
+    let to_world = to_camera.transpose();
+    let mut labels = Vec::new();
+    let depth = Raster::from_fn(width as usize, height as usize, |x, y| {
+        let dir_cam = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+        let (t, label) = intersect(Vec3::ZERO, to_world * dir_cam);
+        labels.push(label);
+        -(dir_cam * t).z
+    });
+    let labels = Raster::from_vec(width as usize, height as usize, labels);
+    Room {
+        camera,
+        to_camera,
+        depth,
+        labels,
+    }
+}
+
+fn true_normal(room: &Room, label: Label, p_cam: Vec3) -> Option<Vec3> {
+    let n_world = match label {
+        Label::Floor | Label::TableTop => Vec3::Y,
+        Label::Wall => Vec3::Z,
+        Label::TableSide => {
+            let p = room.to_camera.transpose() * p_cam;
+            if (p.z - TABLE_MAX.z).abs() < 1e-3 {
+                Vec3::Z
+            } else if (p.x - TABLE_MIN.x).abs() < 1e-3 {
+                Vec3::NEG_X
+            } else if (p.x - TABLE_MAX.x).abs() < 1e-3 {
+                Vec3::X
+            } else {
+                return None;
+            }
+        }
+    };
+    Some(room.to_camera * n_world)
+}
+
+/// Pixel of a mesh vertex from its UV.
+fn pixel_of(room: &Room, uv: [f32; 2]) -> (usize, usize) {
+    let c = &room.camera;
+    (
+        (uv[0] * c.width as f32 - 0.5).round() as usize,
+        (uv[1] * c.height as f32 - 0.5).round() as usize,
+    )
+}
+
+fn interior(room: &Room, x: usize, y: usize, r: usize) -> bool {
+    let l = *room.labels.get(x, y);
+    let (w, h) = (room.labels.width(), room.labels.height());
+    if x < r || y < r || x + r >= w || y + r >= h {
+        return false;
+    }
+    (y - r..=y + r).all(|yy| (x - r..=x + r).all(|xx| *room.labels.get(xx, yy) == l))
+}
+
+fn surfaces_of(room: &Room, mesh: &SceneMesh) -> Surfaces {
+    detect_surfaces(mesh, &room.camera, &SurfaceOptions::default()).unwrap()
+}
+
+#[test]
+fn floor_and_table_normals_are_within_a_fraction_of_a_degree() {
+    let room = room(320, 240, 280.0);
+    let mesh = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
+    let mut worst = [0.0f32; 2];
+    let mut counted = [0usize; 2];
+    for k in 0..mesh.vertex_count() {
+        let (x, y) = pixel_of(&room, mesh.uvs[k]);
+        let label = *room.labels.get(x, y);
+        let slot = match label {
+            Label::Floor => 0,
+            Label::TableTop => 1,
+            _ => continue,
+        };
+        if !interior(&room, x, y, 2) {
+            continue;
+        }
+        let truth = true_normal(&room, label, Vec3::from(mesh.positions[k])).unwrap();
+        let err = Vec3::from(mesh.normals[k])
+            .angle_between(truth)
+            .to_degrees();
+        worst[slot] = worst[slot].max(err);
+        counted[slot] += 1;
+    }
+    assert!(counted[0] > 5000 && counted[1] > 1000, "{counted:?}");
+    assert!(
+        worst[0] < 0.1 && worst[1] < 0.1,
+        "worst normal error floor/table {worst:?}°"
+    );
+    // The table's outline is cut: no triangle joins the table top to the floor behind it.
+    for t in 0..mesh.triangle_count() {
+        let ys: Vec<f32> = mesh
+            .triangle(t)
+            .iter()
+            .map(|p| (room.to_camera.transpose() * *p).y)
+            .collect();
+        let on_top = ys.iter().filter(|y| (**y - TABLE_Y).abs() < 1e-3).count();
+        let on_floor = ys.iter().filter(|y| (**y - FLOOR_Y).abs() < 1e-3).count();
+        assert!(
+            on_top == 0 || on_floor == 0,
+            "triangle {t} bridges table and floor: {ys:?}"
+        );
+    }
+}
+
+#[test]
+fn floor_and_table_planes_and_gravity_are_found() {
+    let room = room(320, 240, 280.0);
+    let mesh = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
+    let found = surfaces_of(&room, &mesh);
+    assert_eq!(found.up_source, UpSource::Planes);
+    let up_err = found.up.angle_between(room.up()).to_degrees();
+    assert!(up_err < 3.0, "up error {up_err}°");
+    let find = |height: f32| {
+        found
+            .surfaces
+            .iter()
+            .find(|s| {
+                let c = room.to_camera.transpose() * s.centroid;
+                s.kind == SurfaceKind::Horizontal && (c.y - height).abs() < 0.05
+            })
+            .unwrap_or_else(|| panic!("no horizontal surface at {height} m: {found:#?}"))
+    };
+    for (name, height) in [("floor", FLOOR_Y), ("table", TABLE_Y)] {
+        let s = find(height);
+        let err = s.normal.angle_between(room.up()).to_degrees();
+        assert!(err < 3.0, "{name} normal error {err}°");
+        assert!(s.rms_m < 1e-3, "{name} flatness {} m", s.rms_m);
+        assert!(s.polygon_image.len() >= 3);
+    }
+    let table = find(TABLE_Y);
+    // The table top's extent: 1.1 m × 1.2 m, partly hidden by nothing (seen from above).
+    assert!(
+        (table.area_m2 - 1.1 * 1.2).abs() < 0.15,
+        "table area {}",
+        table.area_m2
+    );
+    let centre = room
+        .camera
+        .project(room.to_camera * Vec3::new(0.05, TABLE_Y, -2.7));
+    assert!(table.contains_pixel(centre.unwrap().0));
+    // The wall is found and is vertical.
+    assert!(found
+        .surfaces
+        .iter()
+        .any(|s| s.kind == SurfaceKind::Vertical
+            && s.normal
+                .angle_between(room.to_camera * Vec3::Z)
+                .to_degrees()
+                < 3.0));
+}
+
+#[test]
+fn pick_on_the_floor_returns_the_analytic_point() {
+    let room = room(320, 240, 280.0);
+    let mesh = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
+    let bvh = Bvh::new(&mesh);
+    let to_world = room.to_camera.transpose();
+    for pixel in [
+        Vec2::new(40.3, 220.6),
+        Vec2::new(290.0, 200.25),
+        Vec2::new(160.5, 230.0),
+    ] {
+        assert_eq!(
+            *room.labels.get(pixel.x as usize, pixel.y as usize),
+            Label::Floor
+        );
+        let hit = pick(&bvh, &room.camera, pixel).unwrap();
+        let dir = room.camera.ray_direction(pixel.x, pixel.y);
+        let t = FLOOR_Y / (to_world * dir).y;
+        let truth = dir * t;
+        assert!(
+            (hit.point - truth).length() < 1e-4 * t,
+            "{pixel}: {} vs {truth}",
+            hit.point
+        );
+        assert!((hit.t - t).abs() < 1e-4 * t);
+    }
+}
+
+#[test]
+fn an_object_placed_on_the_table_rests_on_it() {
+    let room = room(320, 240, 280.0);
+    let to_world = room.to_camera.transpose();
+    for max_triangles in [None, Some(3000)] {
+        let options = MeshOptions {
+            max_triangles,
+            ..Default::default()
+        };
+        let mesh = SceneMesh::from_depth(&room.depth, &room.camera, &options).unwrap();
+        let full =
+            SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
+        let surfaces = surfaces_of(&room, &full);
+        let bvh = Bvh::new(&mesh);
+        let spot = room.to_camera * Vec3::new(0.2, TABLE_Y, -2.5);
+        let pixel = room.camera.project(spot).unwrap().0;
+        let size = 0.3;
+        let p = place(
+            &bvh,
+            &room.camera,
+            &surfaces,
+            pixel,
+            size,
+            0.0,
+            &PlaceOptions::default(),
+        )
+        .unwrap();
+        let distance = p.base.length();
+        let height_err = ((to_world * p.base).y - TABLE_Y).abs();
+        assert!(
+            height_err < 0.01 * distance,
+            "{max_triangles:?}: base height error {height_err} m at {distance} m"
+        );
+        assert!((p.base - spot).length() < 0.01 * distance);
+        assert!(p.surface.is_some());
+        // Upright along gravity, base at the origin of the model, scaled to size.
+        let origin = p.transform.transform_point3(Vec3::ZERO);
+        assert!((origin - p.base).length() < 1e-5);
+        let top = p.transform.transform_point3(Vec3::Y);
+        assert!(((top - origin) / size - room.up()).length() < 0.05);
+        // Front (+Z) faces the camera horizontally.
+        let front = p.transform.transform_vector3(Vec3::Z).normalize();
+        let to_cam = -p.base.normalize();
+        let flat = (to_cam - room.up() * room.up().dot(to_cam)).normalize();
+        assert!(front.angle_between(flat).to_degrees() < 3.0);
+        // Yaw turns about up.
+        let turned = place(
+            &bvh,
+            &room.camera,
+            &surfaces,
+            pixel,
+            size,
+            90f32.to_radians(),
+            &PlaceOptions::default(),
+        )
+        .unwrap();
+        let f2 = turned.transform.transform_vector3(Vec3::Z).normalize();
+        assert!((f2.angle_between(front).to_degrees() - 90.0).abs() < 1.0);
+    }
+}
+
+#[test]
+fn placement_from_a_host_ray_and_with_model_bounds() {
+    let room = room(160, 120, 140.0);
+    let mesh = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
+    let surfaces = surfaces_of(&room, &mesh);
+    let bvh = Bvh::new(&mesh);
+    // A host ray from a point above the table straight down (gravity).
+    let start = room.to_camera * Vec3::new(0.0, 0.5, -2.6);
+    let ray = Ray::new(start, -room.up());
+    let opts = PlaceOptions {
+        model_bounds: Some([Vec3::new(-1.0, 2.0, -0.5), Vec3::new(1.0, 6.0, 0.5)]),
+        ..Default::default()
+    };
+    let p = place_on_ray(&bvh, &surfaces, &ray, 0.8, 0.0, &opts).unwrap();
+    let base_world = room.to_camera.transpose() * p.base;
+    assert!((base_world.y - TABLE_Y).abs() < 0.01);
+    // The model's bottom centre (0, 2, 0) lands on the base; its 4-unit height becomes 0.8 m.
+    let bottom = p.transform.transform_point3(Vec3::new(0.0, 2.0, 0.0));
+    assert!((bottom - p.base).length() < 1e-4);
+    let top = p.transform.transform_point3(Vec3::new(0.0, 6.0, 0.0));
+    assert!(((top - bottom).length() - 0.8).abs() < 1e-4);
+}
+
+#[test]
+fn bad_placements_are_errors() {
+    let room = room(80, 60, 70.0);
+    let mut depth = room.depth.clone();
+    for y in 0..10 {
+        for x in 0..10 {
+            *depth.get_mut(x, y) = f32::NAN;
+        }
+    }
+    let mesh = SceneMesh::from_depth(&depth, &room.camera, &MeshOptions::default()).unwrap();
+    let surfaces = surfaces_of(&room, &mesh);
+    let bvh = Bvh::new(&mesh);
+    let ok_pixel = Vec2::new(40.0, 55.0);
+    let opts = PlaceOptions::default();
+    for size in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(place(&bvh, &room.camera, &surfaces, ok_pixel, size, 0.0, &opts).is_err());
+    }
+    assert!(place(
+        &bvh,
+        &room.camera,
+        &surfaces,
+        ok_pixel,
+        1.0,
+        f32::NAN,
+        &opts
+    )
+    .is_err());
+    let hole = place(
+        &bvh,
+        &room.camera,
+        &surfaces,
+        Vec2::new(3.0, 3.0),
+        1.0,
+        0.0,
+        &opts,
+    );
+    let message = hole.unwrap_err().to_string();
+    assert!(message.contains("no scene surface at pixel"), "{message}");
+    assert!(place(&bvh, &room.camera, &surfaces, Vec2::NAN, 1.0, 0.0, &opts).is_err());
+    let bad_bounds = PlaceOptions {
+        model_bounds: Some([Vec3::ONE, Vec3::ZERO]),
+        ..Default::default()
+    };
+    assert!(place(
+        &bvh,
+        &room.camera,
+        &surfaces,
+        ok_pixel,
+        1.0,
+        0.0,
+        &bad_bounds
+    )
+    .is_err());
+    // Extreme but legal sizes give finite transforms.
+    for size in [1e-6, 1e6] {
+        let p = place(&bvh, &room.camera, &surfaces, ok_pixel, size, 0.0, &opts).unwrap();
+        assert!(p.transform.is_finite());
+    }
+}
+
+#[test]
+fn no_surfaces_without_geometry_and_camera_up_as_fallback() {
+    let camera = Camera::from_focal(10.0, 1, 1).unwrap();
+    let found =
+        detect_surfaces(&SceneMesh::default(), &camera, &SurfaceOptions::default()).unwrap();
+    assert!(found.surfaces.is_empty());
+    assert_eq!(found.up, Vec3::Y);
+    assert_eq!(found.up_source, UpSource::CameraFallback);
+    // A lone fronto-parallel wall: a vertical surface found, no gravity from it.
+    let camera = Camera::from_focal(60.0, 64, 48).unwrap();
+    let wall = Raster::filled(64, 48, 2.0);
+    let mesh = SceneMesh::from_depth(&wall, &camera, &MeshOptions::default()).unwrap();
+    let found = detect_surfaces(&mesh, &camera, &SurfaceOptions::default()).unwrap();
+    assert_eq!(found.up_source, UpSource::CameraFallback);
+    assert_eq!(found.surfaces.len(), 1);
+    assert_eq!(found.surfaces[0].kind, SurfaceKind::Vertical);
+    assert!((found.surfaces[0].normal - Vec3::Z).length() < 1e-3);
+    let bad = SurfaceOptions {
+        distance_tolerance: 0.0,
+        ..Default::default()
+    };
+    assert!(detect_surfaces(&mesh, &camera, &bad).is_err());
+}
