@@ -10,6 +10,7 @@
 //! |---|---|
 //! | [`image`] | image buffers and views, sRGB↔linear, PNG/JPEG/PFM/EXR/HDR I/O |
 //! | [`camera`] | calibration, disparity ↔ depth |
+//! | [`stereo`] | stereo matching: disparity, confidence and depth from a rectified pair |
 //! | [`scene`] | the demand-driven pipeline with cached products and a [`trace::Trace`] |
 //! | [`ffi`] | the C ABI (`include/parallax.h`) |
 //! | `render` (feature `gpu`) | the headless wgpu context and renderer |
@@ -23,6 +24,7 @@ pub mod image;
 #[cfg(feature = "gpu")]
 pub mod render;
 pub mod scene;
+pub mod stereo;
 pub mod trace;
 
 pub use error::{Error, Result, Status};
