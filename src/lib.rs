@@ -9,6 +9,7 @@
 //! | module | stage |
 //! |---|---|
 //! | [`image`] | image buffers and views, sRGB↔linear, PNG/JPEG/PFM/EXR/HDR I/O |
+//! | [`stereo`] | stereo matching: disparity, confidence and depth from a rectified pair |
 //! | [`camera`] | calibration, disparity ↔ depth, pinhole camera, depth-buffer encodings |
 //! | [`mesh`] | scene mesh from depth, ray queries (BVH), support surfaces, placement, export |
 //! | [`context`] | what scenes share: size caps, the lazily opened GPU |
@@ -27,6 +28,7 @@ pub mod mesh;
 #[cfg(feature = "gpu")]
 pub mod render;
 pub mod scene;
+pub mod stereo;
 pub mod trace;
 
 pub use error::{Error, Result, Status};

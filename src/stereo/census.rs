@@ -1,0 +1,157 @@
+//! Census-transform matching cost: each pixel becomes a bit string saying which neighbours are
+//! darker than it; the cost of a match is the Hamming distance of the two strings. It depends only
+//! on the order of grey levels, so exposure and lighting changes between the views do not affect it.
+
+use rayon::prelude::*;
+
+use super::cost::{CostRows, OUTSIDE_COST};
+use crate::image::Raster;
+
+/// Census transforms of both views and the scale that maps Hamming distances onto 0–255.
+pub struct CensusCost {
+    width: usize,
+    height: usize,
+    left: Vec<u64>,
+    /// The right view's rows stored mirrored, so that the disparity loop reads memory forwards.
+    right_mirrored: Vec<u64>,
+    /// `cost = (hamming × scale) >> 8`.
+    scale: u16,
+}
+
+/// Census transform with a `(2rx+1)×(2ry+1)` window (at most 63 neighbours); borders replicate.
+pub fn census_transform(image: &Raster<u8>, rx: usize, ry: usize) -> Vec<u64> {
+    let (w, h) = (image.width(), image.height());
+    let mut out = vec![0u64; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let rows: Vec<&[u8]> = (0..=2 * ry)
+            .map(|j| image.row((y + j).saturating_sub(ry).min(h - 1)))
+            .collect();
+        let centre = image.row(y);
+        for (x, bits) in row.iter_mut().enumerate() {
+            let c = centre[x];
+            let mut v = 0u64;
+            for (j, r) in rows.iter().enumerate() {
+                for i in 0..=2 * rx {
+                    if j == ry && i == rx {
+                        continue;
+                    }
+                    let xx = (x + i).saturating_sub(rx).min(w - 1);
+                    v = (v << 1) | (r[xx] < c) as u64;
+                }
+            }
+            *bits = v;
+        }
+    });
+    out
+}
+
+impl CensusCost {
+    /// Transforms both views (same size) with the given window half-sizes.
+    pub fn new(left: &Raster<u8>, right: &Raster<u8>, rx: usize, ry: usize) -> Self {
+        let (w, h) = (left.width(), left.height());
+        let bits = ((2 * rx + 1) * (2 * ry + 1) - 1).max(1);
+        let mut right_mirrored = census_transform(right, rx, ry);
+        for row in right_mirrored.chunks_mut(w) {
+            row.reverse();
+        }
+        CensusCost {
+            width: w,
+            height: h,
+            left: census_transform(left, rx, ry),
+            right_mirrored,
+            scale: (255 * 256 / bits) as u16,
+        }
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        (self.left.len() + self.right_mirrored.len()) * 8
+    }
+}
+
+impl CostRows for CensusCost {
+    fn width(&self) -> usize {
+        self.width
+    }
+    fn height(&self) -> usize {
+        self.height
+    }
+
+    fn row(&self, y: usize, bases: Option<&[u16]>, k: usize, out: &mut [u8]) {
+        let w = self.width;
+        let left = &self.left[y * w..(y + 1) * w];
+        let mirrored = &self.right_mirrored[y * w..(y + 1) * w];
+        crate::stereo::simd::dispatch(|| census_row(left, mirrored, bases, k, self.scale, out));
+    }
+}
+
+#[inline(always)]
+fn census_row(
+    left: &[u64],
+    mirrored: &[u64],
+    bases: Option<&[u16]>,
+    k: usize,
+    scale: u16,
+    out: &mut [u8],
+) {
+    let w = left.len();
+    for (x, (&cl, costs)) in left.iter().zip(out.chunks_exact_mut(k)).enumerate() {
+        let base = bases.map_or(0, |b| b[x] as usize);
+        // Disparity d = base + i matches right pixel x − d, i.e. mirrored index w − 1 − x + d.
+        let valid = if x >= base { (x - base + 1).min(k) } else { 0 };
+        if valid > 0 {
+            let start = w - 1 - x + base;
+            let right = &mirrored[start..start + valid];
+            for (c, &cr) in costs[..valid].iter_mut().zip(right) {
+                *c = (((cl ^ cr).count_ones() as u16 * scale) >> 8) as u8;
+            }
+        }
+        costs[valid..].fill(OUTSIDE_COST);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn census_bits_say_which_neighbours_are_darker() {
+        // 3x3 with the centre 5: neighbours below 5 set their bit (row-major, centre skipped).
+        let img = Raster::from_vec(3, 3, vec![1, 9, 1, 9, 5, 9, 1, 9, 1]);
+        let c = census_transform(&img, 1, 1);
+        assert_eq!(c[4], 0b1010_0101);
+    }
+
+    #[test]
+    fn cost_is_zero_at_the_true_shift_and_scaled_hamming_elsewhere() {
+        let w = 40;
+        let left = Raster::from_fn(w, 5, |x, y| ((x * 37 + y * 11) % 23 * 10) as u8);
+        let right = Raster::from_fn(w, 5, |x, y| *left.get((x + 3).min(w - 1), y));
+        let cost = CensusCost::new(&left, &right, 1, 1);
+        let k = 8;
+        let mut row = vec![0u8; w * k];
+        cost.row(2, None, k, &mut row);
+        for x in 10..30 {
+            assert_eq!(row[x * k + 3], 0, "x = {x}");
+        }
+        assert_eq!(
+            &row[..k],
+            &[
+                row[0],
+                OUTSIDE_COST,
+                OUTSIDE_COST,
+                OUTSIDE_COST,
+                OUTSIDE_COST,
+                OUTSIDE_COST,
+                OUTSIDE_COST,
+                OUTSIDE_COST
+            ]
+        );
+        // With bases the window moves: base 2, index 1 is disparity 3.
+        let bases = vec![2u16; w];
+        cost.row(2, Some(&bases), 4, &mut row[..w * 4]);
+        for x in 10..30 {
+            assert_eq!(row[x * 4 + 1], 0);
+        }
+    }
+}

@@ -1,0 +1,20 @@
+//! The interface between matching costs and aggregation: one image row of costs at a time.
+//!
+//! Costs are `u8` on a 0–255 scale so that aggregation runs on `u16` lanes. They are computed row
+//! by row on demand instead of being stored as a volume: the aggregated volume (2 bytes per pixel
+//! and disparity) is then the only volume in memory.
+
+/// Cost of a left pixel whose candidate match lies left of the right image's first column.
+/// A constant lets the smoothness term decide there, which the L/R check later flags anyway.
+pub const OUTSIDE_COST: u8 = 64;
+
+/// A matching cost that can fill one row of costs.
+pub trait CostRows: Sync {
+    /// Image width in pixels.
+    fn width(&self) -> usize;
+    /// Image height in pixels.
+    fn height(&self) -> usize;
+    /// Fills `out` (`width × k` values, pixel-major) with the costs of row `y` for disparities
+    /// `bases[x] + i`, `i in 0..k`; `bases = None` means every base is 0.
+    fn row(&self, y: usize, bases: Option<&[u16]>, k: usize, out: &mut [u8]);
+}

@@ -1,0 +1,331 @@
+//! Dense output: filling pixels without an estimate, and the edge-aware smoothing that follows.
+//!
+//! Filling follows Hirschmüller (2008): each hole looks along 8 directions for the nearest valid
+//! disparity. An occluded pixel belongs to the background, which in a rectified pair lies beside
+//! the occluding object on the same row, so it takes the smaller of its two row neighbours (the
+//! second-smallest of all 8 when the row has none); a mismatched pixel takes the median of the 8.
+//!
+//! Smoothing is the thesis' cascaded convolution (§3.2.1, Fig. 3.6) made edge-aware: passes of a
+//! 5-tap B-spline kernel whose taps spread 1, 2, 4, … pixels apart (the "à trous" form of a
+//! Gaussian pyramid), where each neighbour's weight is
+//! - its confidence (holes that were filled count little),
+//! - low on Canny edges of the image (the thesis' Canny-based confidence map: disparities right on
+//!   an object boundary are the least reliable),
+//! - `exp(−|ΔI| / σ_I)` for the grey-level difference to the centre pixel, and
+//! - zero when its disparity differs from the centre's by more than a jump threshold,
+//!
+//! so no pass averages across an object boundary.
+
+use rayon::prelude::*;
+
+use super::refine::PixelState;
+use crate::image::Raster;
+
+/// Disparity difference between a hole's two row neighbours above which the hole is taken to sit
+/// at a depth step, pixels.
+const OCCLUSION_STEP: f32 = 2.0;
+
+/// Fills every NaN of `disparity` in place (see the module documentation). Returns the number of
+/// pixels filled. An image without a single estimate becomes 0 everywhere.
+pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
+    let (w, h) = (disparity.width(), disparity.height());
+    let holes: Vec<usize> = (0..w * h)
+        .filter(|&p| disparity.pixels()[p].is_nan())
+        .collect();
+    if holes.is_empty() {
+        return 0;
+    }
+    if holes.len() == w * h {
+        disparity.pixels_mut().fill(0.0);
+        return holes.len();
+    }
+    let mut slot = vec![u32::MAX; w * h];
+    for (i, &p) in holes.iter().enumerate() {
+        slot[p] = i as u32;
+    }
+    let mut candidates = vec![[f32::NAN; 8]; holes.len()];
+    let mut last = vec![f32::NAN; w * h];
+    let dirs: [(isize, isize); 8] = [
+        (1, 0),
+        (-1, 0),
+        (0, 1),
+        (0, -1),
+        (1, 1),
+        (-1, -1),
+        (1, -1),
+        (-1, 1),
+    ];
+    let src = disparity.pixels();
+    for (n, &(dx, dy)) in dirs.iter().enumerate() {
+        // Visit pixels so that p − (dx, dy) comes before p.
+        for yi in 0..h {
+            let y = if dy >= 0 { yi } else { h - 1 - yi };
+            for xi in 0..w {
+                let x = if dx >= 0 { xi } else { w - 1 - xi };
+                let p = y * w + x;
+                let v = src[p];
+                let (qx, qy) = (x as isize - dx, y as isize - dy);
+                last[p] = if !v.is_nan() {
+                    v
+                } else if qx >= 0 && qy >= 0 && (qx as usize) < w && (qy as usize) < h {
+                    last[qy as usize * w + qx as usize]
+                } else {
+                    f32::NAN
+                };
+                if slot[p] != u32::MAX && v.is_nan() {
+                    candidates[slot[p] as usize][n] = last[p];
+                }
+            }
+        }
+    }
+    let values: Vec<f32> = holes
+        .par_iter()
+        .zip(candidates.par_iter())
+        .map(|(&p, c)| {
+            let mut v: Vec<f32> = c.iter().copied().filter(|v| !v.is_nan()).collect();
+            v.sort_by(f32::total_cmp);
+            // An occlusion lies beside a nearer object on its row: the smaller of the two row
+            // neighbours is the background. A mismatch between row neighbours at different depths
+            // is treated the same way (holes at depth steps are mostly occlusions the L/R check
+            // could not prove); elsewhere a mismatch takes the median of the 8 directions.
+            let (left, right) = (c[1], c[0]);
+            let row_step =
+                !(left.is_nan() || right.is_nan()) && (left - right).abs() > OCCLUSION_STEP;
+            match (v.len(), state[p]) {
+                (0, _) => f32::NAN,
+                (_, PixelState::Occluded) if !(left.is_nan() && right.is_nan()) => left.min(right),
+                _ if row_step => left.min(right),
+                (1, _) => v[0],
+                (_, PixelState::Occluded) => v[1],
+                (n, _) => v[n / 2],
+            }
+        })
+        .collect();
+    let out = disparity.pixels_mut();
+    for (&p, &v) in holes.iter().zip(&values) {
+        out[p] = v;
+    }
+    // Pixels no direction reached (possible only in odd layouts) take the row's nearest value.
+    if values.iter().any(|v| v.is_nan()) {
+        let fallback = out
+            .iter()
+            .copied()
+            .filter(|v| !v.is_nan())
+            .fold(f32::INFINITY, f32::min);
+        for v in out.iter_mut().filter(|v| v.is_nan()) {
+            *v = fallback;
+        }
+    }
+    holes.len()
+}
+
+/// Canny edges of a grey image (Sobel gradient, non-maximum suppression, hysteresis with
+/// thresholds `low`, `high` in grey levels per pixel). `true` = edge.
+pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
+    let (w, h) = (image.width(), image.height());
+    let at = |x: isize, y: isize| {
+        *image.get(
+            x.clamp(0, w as isize - 1) as usize,
+            y.clamp(0, h as isize - 1) as usize,
+        ) as f32
+    };
+    let mut mag = vec![0f32; w * h];
+    let mut dir = vec![0u8; w * h];
+    for y in 0..h as isize {
+        for x in 0..w as isize {
+            let gx = (at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1))
+                - (at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1));
+            let gy = (at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1))
+                - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
+            let p = y as usize * w + x as usize;
+            mag[p] = (gx * gx + gy * gy).sqrt() / 4.0;
+            // Quantise the gradient direction to 0°, 45°, 90°, 135°.
+            let angle = gy.atan2(gx).to_degrees().rem_euclid(180.0);
+            dir[p] = (((angle + 22.5) / 45.0) as u8) % 4;
+        }
+    }
+    let m = |x: isize, y: isize| {
+        if x < 0 || y < 0 || x >= w as isize || y >= h as isize {
+            0.0
+        } else {
+            mag[y as usize * w + x as usize]
+        }
+    };
+    let mut strong = vec![0u8; w * h]; // 0 none, 1 weak, 2 strong
+    for y in 0..h as isize {
+        for x in 0..w as isize {
+            let p = y as usize * w + x as usize;
+            let (dx, dy) = match dir[p] {
+                0 => (1, 0),
+                1 => (1, 1),
+                2 => (0, 1),
+                _ => (-1, 1),
+            };
+            let v = mag[p];
+            if v >= m(x + dx, y + dy) && v >= m(x - dx, y - dy) && v >= low {
+                strong[p] = if v >= high { 2 } else { 1 };
+            }
+        }
+    }
+    // Hysteresis: weak edges connected to strong ones survive.
+    let mut edge = vec![false; w * h];
+    let mut stack: Vec<usize> = (0..w * h).filter(|&p| strong[p] == 2).collect();
+    for &p in &stack {
+        edge[p] = true;
+    }
+    while let Some(p) = stack.pop() {
+        let (x, y) = ((p % w) as isize, (p / w) as isize);
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let (qx, qy) = (x + dx, y + dy);
+                if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
+                    continue;
+                }
+                let q = qy as usize * w + qx as usize;
+                if !edge[q] && strong[q] == 1 {
+                    edge[q] = true;
+                    stack.push(q);
+                }
+            }
+        }
+    }
+    edge
+}
+
+/// Settings of [`smooth`].
+#[derive(Debug, Clone, Copy)]
+pub struct SmoothOptions {
+    /// Number of cascaded passes (tap spacing 1, 2, 4, …).
+    pub passes: u32,
+    /// Grey-level scale of the image-difference weight.
+    pub sigma_intensity: f32,
+    /// Neighbours whose disparity differs by more than this (pixels) do not contribute.
+    pub max_jump: f32,
+    /// Weight of pixels on Canny edges (the rest weigh 1).
+    pub edge_weight: f32,
+}
+
+/// Edge-aware cascaded smoothing of a dense disparity map (see the module documentation).
+pub fn smooth(
+    disparity: &mut Raster<f32>,
+    confidence: &Raster<f32>,
+    guide: &Raster<u8>,
+    opts: &SmoothOptions,
+) {
+    if opts.passes == 0 {
+        return;
+    }
+    let (w, h) = (disparity.width(), disparity.height());
+    let edges = canny(guide, 10.0, 30.0);
+    let reliability: Vec<f32> = (0..w * h)
+        .map(|p| confidence.pixels()[p].max(0.02) * if edges[p] { opts.edge_weight } else { 1.0 })
+        .collect();
+    let taps = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+    let inv_sigma = 1.0 / opts.sigma_intensity.max(1e-3);
+    let mut src = disparity.pixels().to_vec();
+    let mut dst = vec![0f32; w * h];
+    for pass in 0..opts.passes {
+        let spacing = 1isize << pass.min(10);
+        dst.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+            for (x, o) in out.iter_mut().enumerate() {
+                let p = y * w + x;
+                let (dp, ip) = (src[p], guide.pixels()[p] as f32);
+                let (mut sum, mut weight) = (0f32, 0f32);
+                for (j, ty) in taps.iter().enumerate() {
+                    let qy = y as isize + (j as isize - 2) * spacing;
+                    if qy < 0 || qy >= h as isize {
+                        continue;
+                    }
+                    for (i, tx) in taps.iter().enumerate() {
+                        let qx = x as isize + (i as isize - 2) * spacing;
+                        if qx < 0 || qx >= w as isize {
+                            continue;
+                        }
+                        let q = qy as usize * w + qx as usize;
+                        let dq = src[q];
+                        if (dq - dp).abs() > opts.max_jump {
+                            continue;
+                        }
+                        let di = (guide.pixels()[q] as f32 - ip).abs();
+                        let wq = tx * ty * reliability[q] * (-di * inv_sigma).exp();
+                        sum += wq * dq;
+                        weight += wq;
+                    }
+                }
+                *o = if weight > 1e-12 { sum / weight } else { dp };
+            }
+        });
+        std::mem::swap(&mut src, &mut dst);
+    }
+    disparity.pixels_mut().copy_from_slice(&src);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn occlusions_take_the_background_and_mismatches_the_median() {
+        // Background 10 on the left, foreground 40 on the right, a hole between them.
+        let mut d = Raster::from_fn(12, 5, |x, _| match x {
+            0..=4 => 10.0,
+            5..=6 => f32::NAN,
+            _ => 40.0,
+        });
+        let st = vec![PixelState::Occluded; 60];
+        assert_eq!(fill_holes(&mut d, &st), 10);
+        assert!(d.pixels().iter().all(|v| v.is_finite()));
+        assert_eq!(*d.get(5, 2), 10.0);
+        assert_eq!(*d.get(6, 2), 10.0);
+        // A lone mismatched pixel inside a plane takes the plane's value.
+        let mut d = Raster::filled(7, 7, 3.0f32);
+        *d.get_mut(3, 3) = f32::NAN;
+        fill_holes(&mut d, &[PixelState::Mismatch; 49]);
+        assert_eq!(*d.get(3, 3), 3.0);
+        // Nothing valid at all: zeros, never NaN.
+        let mut d = Raster::filled(4, 4, f32::NAN);
+        fill_holes(&mut d, &[PixelState::Mismatch; 16]);
+        assert!(d.pixels().iter().all(|&v| v == 0.0));
+    }
+
+    #[test]
+    fn canny_finds_a_step_and_nothing_on_flat_ground() {
+        let img = Raster::from_fn(20, 10, |x, _| if x < 10 { 20u8 } else { 200 });
+        let e = canny(&img, 10.0, 30.0);
+        for y in 0..10 {
+            assert!(e[y * 20 + 9] || e[y * 20 + 10], "row {y}");
+            assert!(!e[y * 20 + 3] && !e[y * 20 + 16]);
+        }
+        assert!(canny(&Raster::filled(8, 8, 77u8), 10.0, 30.0)
+            .iter()
+            .all(|e| !e));
+    }
+
+    #[test]
+    fn smoothing_reduces_noise_but_keeps_a_step_sharp() {
+        let (w, h) = (40, 20);
+        let noise = |x: usize, y: usize| (((x * 7919 + y * 104729) % 97) as f32 / 97.0 - 0.5) * 0.4;
+        let truth = |x: usize| if x < 20 { 10.0 } else { 30.0 };
+        let mut d = Raster::from_fn(w, h, |x, y| truth(x) + noise(x, y));
+        let guide = Raster::from_fn(w, h, |x, _| if x < 20 { 50u8 } else { 180 });
+        let conf = Raster::filled(w, h, 1.0f32);
+        let opts = SmoothOptions {
+            passes: 3,
+            sigma_intensity: 10.0,
+            max_jump: 2.0,
+            edge_weight: 0.1,
+        };
+        let err = |d: &Raster<f32>| {
+            (0..w * h)
+                .map(|p| (d.pixels()[p] - truth(p % w)).abs())
+                .sum::<f32>()
+                / (w * h) as f32
+        };
+        let before = err(&d);
+        smooth(&mut d, &conf, &guide, &opts);
+        assert!(err(&d) < before * 0.6, "{} vs {before}", err(&d));
+        for y in 0..h {
+            assert!((*d.get(19, y) - 10.0).abs() < 0.5 && (*d.get(20, y) - 30.0).abs() < 0.5);
+        }
+    }
+}

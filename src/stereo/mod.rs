@@ -1,0 +1,346 @@
+//! Stereo depth (thesis §3.2.1): from a rectified pair to a dense disparity map of the left view
+//! with a per-pixel confidence, then depth.
+//!
+//! Pipeline of [`match_pair`], each step an option of [`StereoOptions`]:
+//! 1. grey levels (sRGB code values, 0–255); optionally undo a vertical offset and small rotation
+//!    of the right view ([`rectify`]);
+//! 2. optionally match a half-size pair first and narrow each pixel's search ([`pyramid`]);
+//! 3. matching costs, census ([`census`]) or SAD blocks ([`sad`]), computed row by row;
+//! 4. aggregation: semi-global matching on 8 or 4 paths ([`sgm`]) or the thesis' scanline
+//!    dynamic programming ([`dp`]);
+//! 5. winner-takes-all, `U_p` confidence (eq. 3.5), sub-pixel, uniqueness, L/R check, speckles
+//!    ([`refine`]);
+//! 6. hole filling and edge-aware smoothing ([`fill`]).
+//!
+//! Disparity follows DESIGN.md: `d = x_left − x_right ≥ 0` in pixels, NaN where there is no estimate
+//! (only with `fill = false`). Depth is `Z = f·B/(d + doffs)` ([`depth_map`]). Without a
+//! calibration, [`assumed_calibration`] gives depth **up to scale**: a 60° horizontal field of view
+//! and a baseline of 1, so depth comes out in baselines.
+//!
+//! Threads: the two SGM sweeps run in parallel (rayon), and every row-wise step is parallel over
+//! rows. Hot loops are compiled twice and chosen at run time for AVX2 ([`simd`]).
+
+pub mod census;
+pub mod cost;
+pub mod dp;
+pub mod fill;
+pub mod metrics;
+pub mod options;
+pub mod pyramid;
+pub mod rectify;
+pub mod refine;
+pub mod sad;
+pub mod sgm;
+pub mod simd;
+
+use std::time::Instant;
+
+pub use options::{Aggregation, CostKind, Preset, StereoOptions, Subpixel};
+
+use crate::camera::StereoCalibration;
+use crate::error::{Error, Result};
+use crate::image::{ImageView, Raster};
+use cost::CostRows;
+use refine::{DecideOptions, Decision, PixelState};
+
+/// Horizontal field of view assumed by [`assumed_calibration`], degrees.
+pub const ASSUMED_HORIZONTAL_FOV_DEG: f64 = 60.0;
+
+/// The result of [`match_pair`].
+#[derive(Debug, Clone)]
+pub struct Disparity {
+    /// Disparity of each left-view pixel in pixels (`x_left − x_right`); NaN = no estimate, which
+    /// only happens with `fill = false`.
+    pub disparity: Raster<f32>,
+    /// Confidence in [0, 1] from the uncertainty term `U_p` (eq. 3.5):
+    /// `1 / (1 + U_p / (paths · P1))`; filled pixels get 0.
+    pub confidence: Raster<f32>,
+    /// Timings and counts.
+    pub stats: StereoStats,
+}
+
+/// What [`match_pair`] did and what it cost.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct StereoStats {
+    /// Wall-clock milliseconds of each sub-stage in order: `stereo.prepare`, `stereo.rectify`,
+    /// `stereo.coarse`, `stereo.cost` (census transform; per-row costs are computed inside
+    /// aggregation and counted there), `stereo.aggregate`, `stereo.decide`, `stereo.speckle`, `stereo.refine`,
+    /// `stereo.fill`, `stereo.smooth`. Steps that did not run are absent.
+    pub timings: Vec<(String, f64)>,
+    /// Total matching time, milliseconds (decoded images in, disparity out).
+    pub total_ms: f64,
+    /// Fraction of pixels without an estimate before filling (0–1).
+    pub invalid_fraction: f32,
+    /// Peak bytes of the matcher's own working buffers (input images not counted).
+    pub peak_working_bytes: u64,
+    /// Vertical offset (pixels) and rotation (degrees) undone in the right view, when estimated.
+    pub misalignment: Option<(f32, f32)>,
+}
+
+impl StereoStats {
+    fn time<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
+        let start = Instant::now();
+        let v = f();
+        self.timings
+            .push((name.to_string(), start.elapsed().as_secs_f64() * 1e3));
+        v
+    }
+}
+
+/// Matches a rectified stereo pair: the disparity of every pixel of `left`.
+///
+/// # Errors
+/// `SizeMismatch` when the views differ in size; `InvalidArgument` for an image narrower or lower
+/// than 2 pixels or an option out of range (`max_disparity` 0 or ≥ width, …).
+pub fn match_pair(
+    left: &ImageView,
+    right: &ImageView,
+    options: &StereoOptions,
+) -> Result<Disparity> {
+    if (left.width(), left.height()) != (right.width(), right.height()) {
+        return Err(Error::SizeMismatch(format!(
+            "stereo views differ in size: left {}x{}, right {}x{}",
+            left.width(),
+            left.height(),
+            right.width(),
+            right.height()
+        )));
+    }
+    if left.width() < 2 || left.height() < 2 {
+        return Err(Error::invalid(format!(
+            "stereo matching needs images of at least 2x2 pixels, got {}x{}",
+            left.width(),
+            left.height()
+        )));
+    }
+    options.validate(left.width())?;
+    let start = Instant::now();
+    let mut stats = StereoStats::default();
+    let (l, mut r) = stats.time("stereo.prepare", || (grey(left), grey(right)));
+    if options.correct_misalignment {
+        let (est, warped) = stats.time("stereo.rectify", || {
+            let est = rectify::estimate_misalignment(&l, &r, options.max_disparity as usize);
+            let warped = rectify::apply_misalignment(&r, &est);
+            (est, warped)
+        });
+        r = warped;
+        stats.misalignment = Some((est.dy, est.angle_deg));
+    }
+    let out = match_grey(&l, &r, options, &mut stats)?;
+    stats.total_ms = start.elapsed().as_secs_f64() * 1e3;
+    Ok(Disparity {
+        disparity: out.0,
+        confidence: out.1,
+        stats,
+    })
+}
+
+/// Grey levels 0–255 of the encoded values (what block matching wants; see `ImageView::to_luma`).
+fn grey(view: &ImageView) -> Raster<u8> {
+    view.to_luma()
+        .map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+}
+
+/// The whole pipeline on grey images; returns (disparity, confidence).
+pub(crate) fn match_grey(
+    l: &Raster<u8>,
+    r: &Raster<u8>,
+    o: &StereoOptions,
+    stats: &mut StereoStats,
+) -> Result<(Raster<f32>, Raster<f32>)> {
+    let (w, h) = (l.width(), l.height());
+    let n = w * h;
+    let levels = o.max_disparity as usize + 1;
+
+    // Coarse-to-fine: only when the window is narrower than the range and the half-size pair is
+    // still wide enough to hold its half range.
+    let coarse_max = o.max_disparity.div_ceil(2).max(1);
+    let use_coarse = o.coarse_levels > 0
+        && o.aggregation != Aggregation::ScanlineDp
+        && (o.coarse_window as usize) < levels
+        && (w.div_ceil(2) as u32) > coarse_max + 1
+        && h >= 4;
+    let (bases, k) = if use_coarse {
+        let start = Instant::now();
+        let (cl, cr) = (pyramid::reduce(l), pyramid::reduce(r));
+        let coarse_opts = StereoOptions {
+            max_disparity: coarse_max,
+            coarse_levels: o.coarse_levels - 1,
+            fill: true,
+            smoothing_passes: 0,
+            local_refinement_radius: 0,
+            speckle_size: o.speckle_size / 4,
+            ..o.clone()
+        };
+        let mut coarse_stats = StereoStats::default();
+        let (coarse, _) = match_grey(&cl, &cr, &coarse_opts, &mut coarse_stats)?;
+        let k = o.coarse_window as usize;
+        let bases = pyramid::window_bases(&coarse, w, h, k, o.max_disparity as usize);
+        stats.peak_working_bytes = coarse_stats.peak_working_bytes;
+        stats
+            .timings
+            .push(("stereo.coarse".into(), start.elapsed().as_secs_f64() * 1e3));
+        (Some(bases), k)
+    } else {
+        (None, levels)
+    };
+
+    let cost = stats.time("stereo.cost", || make_cost(l, r, o));
+    let cost_bytes = match o.cost {
+        CostKind::Census => 16 * n,
+        CostKind::Sad => 0,
+    };
+    let fixed = 2 * n + cost_bytes + bases.as_ref().map_or(0, |b| b.len() * 2);
+
+    let mut decision = match o.aggregation {
+        Aggregation::Sgm8 | Aggregation::Sgm4 => {
+            let paths = if o.aggregation == Aggregation::Sgm8 {
+                8
+            } else {
+                4
+            };
+            let pen = sgm::Penalties::new(o.p1, o.p2, o.p2_gradient_scale, paths);
+            let agg = stats.time("stereo.aggregate", || {
+                sgm::aggregate(cost.as_ref(), l, bases.as_deref(), k, paths, &pen)
+            });
+            let opts = DecideOptions {
+                subpixel: o.subpixel,
+                uniqueness: o.uniqueness,
+                lr_max_diff: o.lr_max_diff,
+                confidence_unit: pen.p1 as f32,
+            };
+            let peak =
+                fixed + sgm::working_bytes(w, h, k) + 9 * n + 12 * w * rayon::current_num_threads();
+            stats.peak_working_bytes = stats.peak_working_bytes.max(peak as u64);
+            stats.time("stereo.decide", || {
+                refine::decide(&agg, bases.as_deref(), &opts)
+            })
+        }
+        Aggregation::ScanlineDp => {
+            let (mut disparity, confidence) = stats.time("stereo.aggregate", || {
+                dp::scanline_dp(cost.as_ref(), k, o.dp_penalty, o.subpixel)
+            });
+            let mut state = vec![PixelState::Valid; n];
+            if let Some(tol) = o.lr_max_diff {
+                let mirror =
+                    |img: &Raster<u8>| Raster::from_fn(w, h, |x, y| *img.get(w - 1 - x, y));
+                let (ml, mr) = (mirror(r), mirror(l));
+                let right = stats.time("stereo.aggregate_right", || {
+                    let c = make_cost(&ml, &mr, o);
+                    dp::scanline_dp(c.as_ref(), k, o.dp_penalty, o.subpixel).0
+                });
+                let right = Raster::from_fn(w, h, |x, y| *right.get(w - 1 - x, y));
+                stats.time("stereo.decide", || {
+                    dp::cross_check(&mut disparity, &right, tol, &mut state)
+                });
+            }
+            let per_row = w * k * 6;
+            let peak = 2 * fixed + 4 * 3 * n + per_row * rayon::current_num_threads();
+            stats.peak_working_bytes = stats.peak_working_bytes.max(peak as u64);
+            Decision {
+                disparity,
+                state,
+                confidence,
+            }
+        }
+    };
+    drop(cost);
+
+    if o.speckle_size > 0 {
+        stats.time("stereo.speckle", || {
+            refine::remove_speckles(
+                &mut decision.disparity,
+                &mut decision.state,
+                o.speckle_size as usize,
+                o.speckle_range,
+            )
+        });
+    }
+    if o.local_refinement_radius > 0 {
+        stats.time("stereo.refine", || {
+            refine::refine_locally(
+                &mut decision.disparity,
+                l,
+                r,
+                o.local_refinement_radius as usize,
+                3,
+            )
+        });
+    }
+    let holes = decision
+        .disparity
+        .pixels()
+        .iter()
+        .filter(|v| v.is_nan())
+        .count();
+    stats.invalid_fraction = holes as f32 / n as f32;
+    let Decision {
+        mut disparity,
+        state,
+        mut confidence,
+    } = decision;
+    for (c, d) in confidence.pixels_mut().iter_mut().zip(disparity.pixels()) {
+        if d.is_nan() {
+            *c = 0.0;
+        }
+    }
+    if o.fill {
+        stats.time("stereo.fill", || fill::fill_holes(&mut disparity, &state));
+        if o.smoothing_passes > 0 {
+            let so = fill::SmoothOptions {
+                passes: o.smoothing_passes,
+                sigma_intensity: 12.0,
+                max_jump: 1.5,
+                edge_weight: 0.2,
+            };
+            stats.time("stereo.smooth", || {
+                fill::smooth(&mut disparity, &confidence, l, &so)
+            });
+        }
+    }
+    // Sub-pixel and smoothing stay within the searched range; clamp against rounding anyway.
+    let top = o.max_disparity as f32;
+    for d in disparity.pixels_mut() {
+        if !d.is_nan() {
+            *d = d.clamp(0.0, top);
+        }
+    }
+    Ok((disparity, confidence))
+}
+
+fn make_cost<'a>(
+    l: &'a Raster<u8>,
+    r: &'a Raster<u8>,
+    o: &StereoOptions,
+) -> Box<dyn CostRows + 'a> {
+    match o.cost {
+        CostKind::Census => Box::new(census::CensusCost::new(
+            l,
+            r,
+            o.census_radius.0 as usize,
+            o.census_radius.1 as usize,
+        )),
+        CostKind::Sad => Box::new(sad::SadCost::new(l, r, o.sad_radius as usize)),
+    }
+}
+
+/// A calibration for a pair without one: focal length from a 60° horizontal field of view
+/// ([`ASSUMED_HORIZONTAL_FOV_DEG`]), principal point at the centre and a baseline of 1 m, so
+/// [`depth_map`] gives depth **up to scale**, in units of the (unknown) baseline.
+pub fn assumed_calibration(width: u32, height: u32) -> Result<StereoCalibration> {
+    let half = (ASSUMED_HORIZONTAL_FOV_DEG.to_radians() / 2.0).tan();
+    StereoCalibration::from_focal_baseline(width as f64 / (2.0 * half), 1.0, width, height)
+}
+
+/// Depth in metres of every pixel, `Z = f·B/(d + doffs)`; NaN where the disparity is NaN or
+/// `d + doffs ≤ 0` (infinitely far).
+///
+/// # Errors
+/// `InvalidArgument` for a calibration with a non-finite or non-positive value.
+pub fn depth_map(disparity: &Raster<f32>, calibration: &StereoCalibration) -> Result<Raster<f32>> {
+    calibration.validate()?;
+    Ok(disparity.map(|&d| calibration.depth_from_disparity(d)))
+}
+
+#[cfg(test)]
+mod tests;

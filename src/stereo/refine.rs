@@ -1,0 +1,382 @@
+//! From aggregated costs to a disparity map: winner-takes-all, the uncertainty term `U_p`
+//! (eq. 3.5) as a confidence, sub-pixel refinement, uniqueness, the left/right consistency check
+//! and speckle removal.
+
+use rayon::prelude::*;
+
+use super::options::Subpixel;
+use super::sgm::Aggregated;
+use crate::image::Raster;
+
+/// Why a pixel has no estimate (or that it has one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum PixelState {
+    /// Estimate kept.
+    Valid = 0,
+    /// The L/R check says the pixel is hidden in the right view (a nearer surface covers it).
+    Occluded = 1,
+    /// Ambiguous or inconsistent: uniqueness, L/R mismatch, or a speckle.
+    Mismatch = 2,
+}
+
+/// Winner, validity and confidence per pixel.
+pub struct Decision {
+    /// Disparity in pixels, NaN where invalid.
+    pub disparity: Raster<f32>,
+    /// Per pixel state.
+    pub state: Vec<PixelState>,
+    /// Confidence in [0, 1].
+    pub confidence: Raster<f32>,
+}
+
+/// Settings of [`decide`].
+#[derive(Debug, Clone, Copy)]
+pub struct DecideOptions {
+    /// Sub-pixel method.
+    pub subpixel: Subpixel,
+    /// Uniqueness margin, percent (0 = off).
+    pub uniqueness: u32,
+    /// L/R tolerance in pixels, `None` = no check.
+    pub lr_max_diff: Option<u32>,
+    /// Cost units that make `U_p` = this × paths map to confidence 0.5.
+    pub confidence_unit: f32,
+}
+
+/// Sub-pixel offset in [−0.5, 0.5] from the costs at d−1, d, d+1 (`c0 ≤ cm, cp`).
+///
+/// Flat or degenerate curves (denominator ≈ 0) give 0, never a division by zero.
+pub fn subpixel_offset(method: Subpixel, cm: f32, c0: f32, cp: f32) -> f32 {
+    let off = match method {
+        Subpixel::None => 0.0,
+        Subpixel::Parabola => {
+            let denom = cm + cp - 2.0 * c0;
+            if denom <= 1e-6 {
+                0.0
+            } else {
+                (cm - cp) / (2.0 * denom)
+            }
+        }
+        Subpixel::Equiangular => {
+            let denom = cm.max(cp) - c0;
+            if denom <= 1e-6 {
+                0.0
+            } else {
+                (cm - cp) / (2.0 * denom)
+            }
+        }
+    };
+    if off.is_finite() {
+        off.clamp(-0.5, 0.5)
+    } else {
+        0.0
+    }
+}
+
+/// Picks each pixel's winner in `agg` (window `bases[p]..bases[p]+k`), refines and checks it.
+pub fn decide(agg: &Aggregated, bases: Option<&[u16]>, opts: &DecideOptions) -> Decision {
+    let (w, h, k) = (agg.width, agg.height, agg.k);
+    let mut disparity = vec![f32::NAN; w * h];
+    let mut state = vec![PixelState::Valid; w * h];
+    let mut confidence = vec![0f32; w * h];
+    let unit = opts.confidence_unit.max(1e-3) * agg.paths as f32;
+    disparity
+        .par_chunks_mut(w)
+        .zip(state.par_chunks_mut(w))
+        .zip(confidence.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, ((disp, st), conf))| {
+            let s_row = &agg.s[y * w * k..(y + 1) * w * k];
+            let bases = bases.map(|b| &b[y * w..(y + 1) * w]);
+            // Integer winners of the left view, and of the right view from the same volume:
+            // the right pixel xr = x − d sees left pixel x at disparity d.
+            let mut best_left = vec![0u32; w];
+            let mut right_cost = vec![u16::MAX; w];
+            let mut right_best = vec![0u32; w];
+            for x in 0..w {
+                let s = &s_row[x * k..(x + 1) * k];
+                let base = bases.map_or(0, |b| b[x] as usize);
+                let (mut bi, mut bv) = (0usize, u16::MAX);
+                for (i, &v) in s.iter().enumerate() {
+                    if v < bv {
+                        bv = v;
+                        bi = i;
+                    }
+                    let d = base + i;
+                    if d <= x && v < right_cost[x - d] {
+                        right_cost[x - d] = v;
+                        right_best[x - d] = d as u32;
+                    }
+                }
+                best_left[x] = (base + bi) as u32;
+                let u = bv.saturating_sub(agg.min_sum[y * w + x]) as f32;
+                conf[x] = 1.0 / (1.0 + u / unit);
+                if opts.uniqueness > 0 {
+                    let limit = bv as u64 * 100;
+                    let unique = s.iter().enumerate().all(|(i, &v)| {
+                        i.abs_diff(bi) <= 1 || v as u64 * (100 - opts.uniqueness as u64) >= limit
+                    });
+                    if !unique {
+                        st[x] = PixelState::Mismatch;
+                        continue;
+                    }
+                }
+                let off = if bi > 0 && bi + 1 < k {
+                    subpixel_offset(opts.subpixel, s[bi - 1] as f32, bv as f32, s[bi + 1] as f32)
+                } else {
+                    0.0
+                };
+                disp[x] = (base + bi) as f32 + off;
+            }
+            if let Some(tol) = opts.lr_max_diff {
+                for x in 0..w {
+                    if st[x] != PixelState::Valid {
+                        continue;
+                    }
+                    let d = best_left[x] as usize;
+                    if d > x || right_best[x - d].abs_diff(d as u32) > tol {
+                        st[x] = PixelState::Mismatch;
+                    }
+                }
+                // Hirschmüller's rule: a failed pixel is occluded when no disparity at all would
+                // pass the check (its true match is hidden), and a mismatch otherwise.
+                let top = bases.map_or(k, |b| b.iter().map(|&v| v as usize + k).max().unwrap_or(k));
+                for x in 0..w {
+                    if st[x] == PixelState::Valid {
+                        continue;
+                    }
+                    let consistent =
+                        (0..top.min(x + 1)).any(|d| right_best[x - d].abs_diff(d as u32) <= tol);
+                    if !consistent {
+                        st[x] = PixelState::Occluded;
+                    }
+                }
+            }
+            for x in 0..w {
+                if st[x] != PixelState::Valid {
+                    disp[x] = f32::NAN;
+                }
+            }
+        });
+    Decision {
+        disparity: Raster::from_vec(w, h, disparity),
+        state,
+        confidence: Raster::from_vec(w, h, confidence),
+    }
+}
+
+/// Marks as [`PixelState::Mismatch`] every 4-connected region of valid pixels (neighbours differing
+/// by at most `range`) smaller than `max_size` pixels.
+pub fn remove_speckles(
+    disparity: &mut Raster<f32>,
+    state: &mut [PixelState],
+    max_size: usize,
+    range: f32,
+) {
+    if max_size == 0 {
+        return;
+    }
+    let (w, h) = (disparity.width(), disparity.height());
+    let mut label = vec![u32::MAX; w * h];
+    let mut stack = Vec::new();
+    let mut region = Vec::new();
+    let mut next = 0u32;
+    let d = disparity.pixels().to_vec();
+    for start in 0..w * h {
+        if label[start] != u32::MAX || state[start] != PixelState::Valid {
+            continue;
+        }
+        region.clear();
+        stack.push(start);
+        label[start] = next;
+        while let Some(p) = stack.pop() {
+            region.push(p);
+            let (x, y) = (p % w, p / w);
+            let mut visit = |q: usize| {
+                if label[q] == u32::MAX
+                    && state[q] == PixelState::Valid
+                    && (d[q] - d[p]).abs() <= range
+                {
+                    label[q] = next;
+                    stack.push(q);
+                }
+            };
+            if x > 0 {
+                visit(p - 1);
+            }
+            if x + 1 < w {
+                visit(p + 1);
+            }
+            if y > 0 {
+                visit(p - w);
+            }
+            if y + 1 < h {
+                visit(p + w);
+            }
+        }
+        if region.len() < max_size {
+            for &p in &region {
+                state[p] = PixelState::Mismatch;
+                disparity.pixels_mut()[p] = f32::NAN;
+            }
+        }
+        next = next.wrapping_add(1);
+    }
+}
+
+/// Local sub-pixel refinement: for every pixel with an estimate, a few Gauss–Newton steps
+/// (Lucas–Kanade in one dimension) on the grey levels of a `(2r+1)²` window move the disparity
+/// to where the window matches best, with the window's mean and contrast removed (exposure
+/// changes) and neighbours weighted by their grey-level similarity to the centre (so a window
+/// straddling an object boundary listens to its own side). The integer-grid costs of census and
+/// SAD cannot resolve disparity finer than about 0.2 px; the grey levels can.
+///
+/// A pixel keeps its value when its window has no horizontal texture or the steps drift more than
+/// half a pixel away.
+pub fn refine_locally(
+    disparity: &mut Raster<f32>,
+    left: &Raster<u8>,
+    right: &Raster<u8>,
+    radius: usize,
+    iterations: u32,
+) {
+    let (w, h) = (left.width(), left.height());
+    let r = radius as isize;
+    // Horizontal gradient of the right view (central differences).
+    let grad: Vec<f32> = (0..w * h)
+        .map(|p| {
+            let (x, y) = (p % w, p / w);
+            let a = *right.get(x.saturating_sub(1), y) as f32;
+            let b = *right.get((x + 1).min(w - 1), y) as f32;
+            0.5 * (b - a)
+        })
+        .collect();
+    let src = disparity.pixels().to_vec();
+    disparity
+        .pixels_mut()
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, out)| {
+            let mut lv = Vec::with_capacity((2 * radius + 1).pow(2));
+            for (x, o) in out.iter_mut().enumerate() {
+                let d0 = src[y * w + x];
+                if d0.is_nan() {
+                    continue;
+                }
+                let centre = *left.get(x, y) as f32;
+                // Window pixels: left value and similarity weight.
+                lv.clear();
+                for j in -r..=r {
+                    let yy = y as isize + j;
+                    if yy < 0 || yy >= h as isize {
+                        continue;
+                    }
+                    for i in -r..=r {
+                        let xx = x as isize + i;
+                        if xx < 0 || xx >= w as isize {
+                            continue;
+                        }
+                        let v = *left.get(xx as usize, yy as usize) as f32;
+                        let wt = (-(v - centre).abs() / 12.0).exp();
+                        lv.push((xx as f32, yy as usize, v, wt));
+                    }
+                }
+                let mut d = d0;
+                let mut ok = true;
+                for _ in 0..iterations {
+                    let (mut sw, mut sl, mut sr, mut sg) = (0f32, 0f32, 0f32, 0f32);
+                    let mut samples = [(0f32, 0f32, 0f32, 0f32); 81];
+                    let mut n = 0;
+                    for &(xx, yy, lval, wt) in &lv {
+                        let xs = xx - d;
+                        if xs < 0.0 || xs > (w - 1) as f32 || n == samples.len() {
+                            continue;
+                        }
+                        let x0 = (xs as usize).min(w - 2);
+                        let f = xs - x0 as f32;
+                        let row = right.row(yy);
+                        let rv = row[x0] as f32 * (1.0 - f) + row[x0 + 1] as f32 * f;
+                        let g = grad[yy * w + x0] * (1.0 - f) + grad[yy * w + x0 + 1] * f;
+                        samples[n] = (lval, rv, g, wt);
+                        n += 1;
+                        sw += wt;
+                        sl += wt * lval;
+                        sr += wt * rv;
+                        sg += wt * g;
+                    }
+                    if n < 4 || sw <= 0.0 {
+                        ok = false;
+                        break;
+                    }
+                    let (ml, mr, mg) = (sl / sw, sr / sw, sg / sw);
+                    let (mut vl, mut vr) = (0f32, 0f32);
+                    for s in &samples[..n] {
+                        vl += s.3 * (s.0 - ml) * (s.0 - ml);
+                        vr += s.3 * (s.1 - mr) * (s.1 - mr);
+                    }
+                    let gain = if vl > 1e-3 { (vr / vl).sqrt() } else { 1.0 };
+                    let (mut eg, mut gg) = (0f32, 0f32);
+                    for s in &samples[..n] {
+                        // Residual of L(p) ≈ R(p − d): moving d by δ changes R by −g·δ.
+                        let e = (s.0 - ml) * gain - (s.1 - mr);
+                        let g = s.2 - mg;
+                        eg += s.3 * e * g;
+                        gg += s.3 * g * g;
+                    }
+                    if gg < 4.0 * sw {
+                        // Under ~2 grey levels per pixel of horizontal gradient: no reliable texture.
+                        ok = false;
+                        break;
+                    }
+                    let delta = (-eg / gg).clamp(-0.5, 0.5);
+                    d += delta;
+                    if delta.abs() < 0.005 {
+                        break;
+                    }
+                }
+                if ok && d.is_finite() && (d - d0).abs() <= 0.5 {
+                    *o = d;
+                }
+            }
+        });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn subpixel_recovers_the_vertex_and_guards_degenerate_curves() {
+        // c(t) = (t − 0.3)² has its vertex at 0.3.
+        let c = |t: f32| (t - 0.3) * (t - 0.3);
+        let off = subpixel_offset(Subpixel::Parabola, c(-1.0), c(0.0), c(1.0));
+        assert!((off - 0.3).abs() < 1e-5);
+        // V-shape with vertex 0.2: c(t) = |t − 0.2|.
+        let v = |t: f32| (t - 0.2f32).abs();
+        let off = subpixel_offset(Subpixel::Equiangular, v(-1.0), v(0.0), v(1.0));
+        assert!((off - 0.2).abs() < 1e-5);
+        for m in [Subpixel::Parabola, Subpixel::Equiangular] {
+            assert_eq!(subpixel_offset(m, 5.0, 5.0, 5.0), 0.0);
+            assert_eq!(subpixel_offset(m, 1e30, 0.0, 1e30), 0.0);
+            let o = subpixel_offset(m, 0.0, 0.0, 100.0);
+            assert!((-0.5..=0.5).contains(&o));
+        }
+    }
+
+    #[test]
+    fn small_regions_are_removed_and_large_ones_kept() {
+        let mut d = Raster::from_fn(20, 20, |x, y| {
+            if (8..10).contains(&x) && (8..10).contains(&y) {
+                30.0
+            } else {
+                5.0
+            }
+        });
+        let mut st = vec![PixelState::Valid; 400];
+        remove_speckles(&mut d, &mut st, 10, 1.0);
+        assert!(d.get(8, 8).is_nan());
+        assert_eq!(st[8 * 20 + 9], PixelState::Mismatch);
+        assert_eq!(*d.get(0, 0), 5.0);
+        assert_eq!(st.iter().filter(|s| **s == PixelState::Mismatch).count(), 4);
+    }
+}

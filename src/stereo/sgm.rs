@@ -1,0 +1,382 @@
+//! Semi-global matching (Hirschmüller 2008; the thesis' eq. 3.3–3.4):
+//! `L_r(p,d) = C(p,d) + min(L_r(p−r,d), L_r(p−r,d±1) + P1, min_i L_r(p−r,i) + P2) − min_i L_r(p−r,i)`
+//! summed over 4 or 8 path directions into `S(p,d)`, kept as `u16`.
+//!
+//! The paths run in two sweeps: a forward sweep (top to bottom, left to right: paths from the left,
+//! upper-left, top and upper-right) and a backward sweep (the mirror image). The two sweeps run on
+//! two threads at once, each computing its own cost rows on the fly; they both add into `S`, one
+//! row lock each, and only meet once, in the middle of the image. Memory: `S` plus, per sweep, two
+//! rows of path costs.
+//!
+//! Each pixel may search its own window of `k` disparities `base(p)..base(p)+k` (coarse-to-fine);
+//! a path step then aligns the neighbour's window to the pixel's before the recurrence.
+
+use std::sync::Mutex;
+
+use super::cost::CostRows;
+use crate::image::Raster;
+
+/// Path costs beyond a window's ends: large, and saturating arithmetic keeps them there.
+const FAR: u16 = u16::MAX;
+
+/// Aggregated costs `S(p, base(p) + i)` and, per pixel, `Σ_r min_d L_r(p, d)` (for eq. 3.5).
+pub struct Aggregated {
+    /// Image width.
+    pub width: usize,
+    /// Image height.
+    pub height: usize,
+    /// Disparities per pixel.
+    pub k: usize,
+    /// `S`, pixel-major: `s[(y·width + x)·k + i]`.
+    pub s: Vec<u16>,
+    /// `Σ_r min_d L_r(p, d)` per pixel (saturating).
+    pub min_sum: Vec<u16>,
+    /// Number of paths summed.
+    pub paths: u32,
+}
+
+/// SGM penalties after clamping, and the P2 reduction table indexed by `|ΔI|`.
+#[derive(Clone)]
+pub struct Penalties {
+    /// Penalty for a one-pixel step.
+    pub p1: u16,
+    /// `p2_table[|I(p) − I(p−r)|]`: P2 for that grey-level step, never below P1.
+    pub p2_table: [u16; 256],
+}
+
+impl Penalties {
+    /// Clamps P2 so that `paths · (255 + P2)` fits `u16` (no sum can saturate), and builds the
+    /// gradient table `P2 / (1 + |ΔI| / scale)` (`scale = 0`: constant).
+    pub fn new(p1: u16, p2: u16, gradient_scale: f32, paths: u32) -> Self {
+        let p2_max = (u16::MAX as u32 / paths.max(1)).saturating_sub(256) as u16;
+        let p2 = p2.min(p2_max).max(1);
+        let p1 = p1.min(p2).max(1);
+        let mut p2_table = [p2; 256];
+        if gradient_scale > 0.0 {
+            for (g, v) in p2_table.iter_mut().enumerate() {
+                *v = ((p2 as f32 / (1.0 + g as f32 / gradient_scale)) as u16).max(p1);
+            }
+        }
+        Penalties { p1, p2_table }
+    }
+}
+
+/// Aggregates along `paths` (4 or 8) directions. `bases` (one per pixel, or `None` for all 0) and
+/// `k` say which disparities each pixel searches; `guide` is the left image, for adaptive P2.
+pub fn aggregate(
+    cost: &dyn CostRows,
+    guide: &Raster<u8>,
+    bases: Option<&[u16]>,
+    k: usize,
+    paths: u32,
+    penalties: &Penalties,
+) -> Aggregated {
+    let (w, h) = (cost.width(), cost.height());
+    let mut s = vec![0u16; w * h * k];
+    let mut min_sum = vec![0u16; w * h];
+    {
+        let rows: Vec<Mutex<(&mut [u16], &mut [u16])>> = s
+            .chunks_mut(w * k)
+            .zip(min_sum.chunks_mut(w))
+            .map(Mutex::new)
+            .collect();
+        let sweep = |forward: bool| {
+            super::simd::dispatch(|| {
+                Sweep::new(cost, guide, bases, k, paths == 8, penalties, forward).run(&rows)
+            })
+        };
+        rayon::join(|| sweep(true), || sweep(false));
+    }
+    Aggregated {
+        width: w,
+        height: h,
+        k,
+        s,
+        min_sum,
+        paths,
+    }
+}
+
+/// Bytes [`aggregate`] allocates for an image of `w × h` with `k` disparities (both sweeps).
+pub fn working_bytes(w: usize, h: usize, k: usize) -> usize {
+    let volume = w * h * k * 2 + w * h * 2;
+    let per_sweep = w * k + 2 * 3 * w * (k + 2) * 2 + 2 * (k + 2) * 2 + 3 * 2 * w * 2;
+    volume + 2 * per_sweep
+}
+
+struct Sweep<'a> {
+    cost: &'a dyn CostRows,
+    guide: &'a Raster<u8>,
+    bases: Option<&'a [u16]>,
+    k: usize,
+    diagonals: bool,
+    pen: &'a Penalties,
+    forward: bool,
+}
+
+/// One path direction's costs for a whole row, `k + 2` values a pixel with `FAR` at both ends.
+struct PathRow {
+    l: Vec<u16>,
+    min: Vec<u16>,
+}
+
+impl PathRow {
+    fn new(w: usize, k: usize) -> Self {
+        let mut l = vec![0u16; w * (k + 2)];
+        for px in l.chunks_exact_mut(k + 2) {
+            px[0] = FAR;
+            px[k + 1] = FAR;
+        }
+        PathRow { l, min: vec![0; w] }
+    }
+}
+
+impl<'a> Sweep<'a> {
+    fn new(
+        cost: &'a dyn CostRows,
+        guide: &'a Raster<u8>,
+        bases: Option<&'a [u16]>,
+        k: usize,
+        diagonals: bool,
+        pen: &'a Penalties,
+        forward: bool,
+    ) -> Self {
+        Sweep {
+            cost,
+            guide,
+            bases,
+            k,
+            diagonals,
+            pen,
+            forward,
+        }
+    }
+
+    #[inline(always)]
+    fn run(&self, rows: &[Mutex<(&mut [u16], &mut [u16])>]) {
+        let (w, h, k) = (self.cost.width(), self.cost.height(), self.k);
+        let kp = k + 2;
+        let mut costs = vec![0u8; w * k];
+        // Index 0: along the row; 1: vertical; 2, 3: the two diagonals. prev = row before.
+        let ndir = if self.diagonals { 3 } else { 1 };
+        let mut prev: Vec<PathRow> = (0..ndir).map(|_| PathRow::new(w, k)).collect();
+        let mut cur: Vec<PathRow> = (0..ndir).map(|_| PathRow::new(w, k)).collect();
+        // The row path: previous pixel and current pixel.
+        let mut hprev = vec![FAR; kp];
+        let mut hcur = vec![FAR; kp];
+        let mut hmin = 0u16;
+        // A path that enters the image here starts from zeros (then L = C).
+        let mut start = vec![0u16; kp];
+        start[0] = FAR;
+        start[k + 1] = FAR;
+        let mut aligned = vec![FAR; kp];
+        let p1 = self.pen.p1;
+        let step_x: isize = if self.forward { 1 } else { -1 };
+
+        for yi in 0..h {
+            let y = if self.forward { yi } else { h - 1 - yi };
+            let prev_y = if yi == 0 {
+                None
+            } else {
+                Some((y as isize - step_x) as usize)
+            };
+            let row_bases = self.bases.map(|b| &b[y * w..(y + 1) * w]);
+            let prev_bases = match (self.bases, prev_y) {
+                (Some(b), Some(py)) => Some(&b[py * w..(py + 1) * w]),
+                _ => None,
+            };
+            self.cost.row(y, row_bases, k, &mut costs);
+            let g = self.guide.row(y);
+            let gp = prev_y.map(|py| self.guide.row(py));
+
+            let Ok(mut guard) = rows[y].lock() else {
+                // A panic on the other sweep poisoned the lock; it propagates from rayon::join.
+                return;
+            };
+            let (s_row, min_row) = &mut *guard;
+            for xi in 0..w {
+                let x = if self.forward { xi } else { w - 1 - xi };
+                let c = &costs[x * k..(x + 1) * k];
+                let sum = &mut s_row[x * k..(x + 1) * k];
+                let base = row_bases.map_or(0, |b| b[x]);
+                let mut min_total: u32 = 0;
+
+                // Along the row.
+                {
+                    let p2 = if xi == 0 {
+                        self.pen.p2_table[0]
+                    } else {
+                        let xq = (x as isize - step_x) as usize;
+                        self.pen.p2_table[g[x].abs_diff(g[xq]) as usize]
+                    };
+                    let (src, minprev) = if xi == 0 {
+                        (&start[..], 0)
+                    } else {
+                        let xq = (x as isize - step_x) as usize;
+                        let shift = base as isize - row_bases.map_or(0, |b| b[xq]) as isize;
+                        (align(&hprev, shift, &mut aligned), hmin)
+                    };
+                    let m = step(c, src, minprev, p1, p2, &mut hcur, sum);
+                    min_total += m as u32;
+                    hmin = m;
+                    std::mem::swap(&mut hprev, &mut hcur);
+                }
+
+                // From the previous row: vertical, then the diagonals (x − step, x + step).
+                let offsets: &[isize] = if self.diagonals { &[0, -1, 1] } else { &[0] };
+                for (dir, &off) in offsets.iter().enumerate() {
+                    let xq = x as isize + off * step_x;
+                    let out = &mut cur[dir].l[x * kp..(x + 1) * kp];
+                    let m = match (prev_y, gp) {
+                        (Some(_), Some(gp)) if xq >= 0 && (xq as usize) < w => {
+                            let xq = xq as usize;
+                            let p2 = self.pen.p2_table[g[x].abs_diff(gp[xq]) as usize];
+                            let shift = base as isize - prev_bases.map_or(0, |b| b[xq]) as isize;
+                            let src =
+                                align(&prev[dir].l[xq * kp..(xq + 1) * kp], shift, &mut aligned);
+                            step(c, src, prev[dir].min[xq], p1, p2, out, sum)
+                        }
+                        _ => step(c, &start, 0, p1, self.pen.p2_table[0], out, sum),
+                    };
+                    cur[dir].min[x] = m;
+                    min_total += m as u32;
+                }
+                min_row[x] = min_row[x].saturating_add(min_total.min(u16::MAX as u32) as u16);
+            }
+            drop(guard);
+            std::mem::swap(&mut prev, &mut cur);
+        }
+    }
+}
+
+/// The neighbour's path costs re-indexed to the pixel's window (`shift` = own base − neighbour's).
+#[inline(always)]
+fn align<'b>(neighbour: &'b [u16], shift: isize, scratch: &'b mut [u16]) -> &'b [u16] {
+    if shift == 0 {
+        return neighbour;
+    }
+    let kp = neighbour.len();
+    // scratch[j] = neighbour[j + shift] for the inner values (1..kp-1), FAR elsewhere.
+    for (j, v) in scratch.iter_mut().enumerate() {
+        let src = j as isize + shift;
+        *v = if src >= 1 && src < kp as isize - 1 {
+            neighbour[src as usize]
+        } else {
+            FAR
+        };
+    }
+    scratch
+}
+
+/// One recurrence step (eq. 3.3) for every disparity of a pixel; adds into `sum`, returns the
+/// minimum of the new path costs. `prev` and `out` hold `k + 2` values with `FAR` at both ends.
+#[inline(always)]
+fn step(
+    cost: &[u8],
+    prev: &[u16],
+    minprev: u16,
+    p1: u16,
+    p2: u16,
+    out: &mut [u16],
+    sum: &mut [u16],
+) -> u16 {
+    let k = cost.len();
+    let (prev, out, sum) = (&prev[..k + 2], &mut out[..k + 2], &mut sum[..k]);
+    let jump = minprev.saturating_add(p2);
+    let mut best = u16::MAX;
+    for i in 0..k {
+        let same = prev[i + 1];
+        let lower = prev[i].saturating_add(p1);
+        let upper = prev[i + 2].saturating_add(p1);
+        let t = same.min(lower).min(upper).min(jump);
+        // t ≥ minprev (minprev is the minimum of prev), so the subtraction cannot wrap.
+        let v = (cost[i] as u16).saturating_add(t - minprev);
+        out[i + 1] = v;
+        sum[i] = sum[i].saturating_add(v);
+        best = best.min(v);
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A cost that prefers one disparity everywhere except one pixel that prefers another.
+    struct Toy {
+        w: usize,
+        h: usize,
+        d: usize,
+    }
+    impl CostRows for Toy {
+        fn width(&self) -> usize {
+            self.w
+        }
+        fn height(&self) -> usize {
+            self.h
+        }
+        fn row(&self, y: usize, bases: Option<&[u16]>, k: usize, out: &mut [u8]) {
+            for x in 0..self.w {
+                for i in 0..k {
+                    let d = bases.map_or(0, |b| b[x] as usize) + i;
+                    let want = if (x, y) == (5, 5) { self.d + 5 } else { self.d };
+                    out[x * k + i] = if d == want { 0 } else { 40 };
+                }
+            }
+        }
+    }
+
+    fn argmin(v: &[u16]) -> usize {
+        (0..v.len()).min_by_key(|&i| v[i]).unwrap_or(0)
+    }
+
+    #[test]
+    fn smoothness_overrides_a_single_outlier_and_keeps_sums_unsaturated() {
+        let toy = Toy { w: 12, h: 11, d: 3 };
+        let guide = Raster::filled(12, 11, 0u8);
+        for paths in [4, 8] {
+            let pen = Penalties::new(10, 100, 0.0, paths);
+            let a = aggregate(&toy, &guide, None, 10, paths, &pen);
+            for p in 0..12 * 11 {
+                assert_eq!(argmin(&a.s[p * 10..p * 10 + 10]), 3, "pixel {p}");
+            }
+            // Eq. 3.5: where every path agrees, min S equals the sum of the path minima.
+            let p = 2 * 12 + 9;
+            assert_eq!(a.s[p * 10 + 3], a.min_sum[p]);
+            assert!(a.s.iter().all(|&v| v < u16::MAX));
+        }
+    }
+
+    #[test]
+    fn huge_p2_is_clamped_so_nothing_saturates() {
+        let toy = Toy { w: 9, h: 9, d: 2 };
+        let guide = Raster::filled(9, 9, 0u8);
+        let pen = Penalties::new(u16::MAX, u16::MAX, 0.0, 8);
+        assert!(8 * (255 + pen.p2_table[0] as u32) <= u16::MAX as u32);
+        let a = aggregate(&toy, &guide, None, 6, 8, &pen);
+        assert!(a.s.iter().all(|&v| v < u16::MAX));
+        for p in 0..81 {
+            assert_eq!(argmin(&a.s[p * 6..p * 6 + 6]), 2);
+        }
+    }
+
+    #[test]
+    fn per_pixel_windows_give_the_same_winner_as_the_full_search() {
+        let toy = Toy { w: 14, h: 8, d: 6 };
+        let guide = Raster::filled(14, 8, 0u8);
+        let pen = Penalties::new(10, 100, 0.0, 8);
+        // Windows of 5 that all contain 6 but start at different places.
+        let bases: Vec<u16> = (0..14 * 8).map(|p| (2 + p % 3) as u16).collect();
+        let a = aggregate(&toy, &guide, Some(&bases), 5, 8, &pen);
+        for (p, &base) in bases.iter().enumerate() {
+            if p == 5 * 14 + 5 {
+                continue;
+            }
+            assert_eq!(
+                base as usize + argmin(&a.s[p * 5..p * 5 + 5]),
+                6,
+                "pixel {p}"
+            );
+        }
+    }
+}

@@ -1,0 +1,413 @@
+//! Tests of the whole matcher on synthetic pairs with exact disparity, and on bad and extreme input.
+
+use super::*;
+use crate::image::{Image, PixelFormat};
+
+/// A smooth, richly textured grey function of continuous coordinates, so that a view shifted by a
+/// fractional disparity can be rendered exactly.
+pub(crate) fn texture(x: f32, y: f32) -> u8 {
+    let hash = |i: i32, j: i32| {
+        let mut v = (i as u32).wrapping_mul(0x9E37_79B1) ^ (j as u32).wrapping_mul(0x85EB_CA77);
+        v ^= v >> 15;
+        v = v.wrapping_mul(0x2C1B_3C6D);
+        v ^= v >> 12;
+        (v & 0xffff) as f32 / 65535.0
+    };
+    let noise = |x: f32, y: f32| {
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let s = |t: f32| t * t * (3.0 - 2.0 * t);
+        let (sx, sy) = (s(fx), s(fy));
+        let (i, j) = (x0 as i32, y0 as i32);
+        let top = hash(i, j) * (1.0 - sx) + hash(i + 1, j) * sx;
+        let bottom = hash(i, j + 1) * (1.0 - sx) + hash(i + 1, j + 1) * sx;
+        top * (1.0 - sy) + bottom * sy
+    };
+    let v = 128.0
+        + 70.0 * (noise(x / 2.3, y / 2.3) - 0.5) * 2.0
+        + 30.0 * (0.31 * x + 0.17 * y).sin()
+        + 20.0 * (noise(x / 7.0 + 50.0, y / 7.0) - 0.5);
+    v.clamp(0.0, 255.0) as u8
+}
+
+fn gray(w: usize, h: usize, f: impl Fn(usize, usize) -> u8) -> Image {
+    let data = (0..w * h).map(|p| f(p % w, p / w)).collect();
+    Image::from_bytes(w as u32, h as u32, PixelFormat::Gray8, data).unwrap()
+}
+
+fn opts(max: u32) -> StereoOptions {
+    StereoOptions {
+        max_disparity: max,
+        ..StereoOptions::default()
+    }
+}
+
+fn run(l: &Image, r: &Image, o: &StereoOptions) -> Disparity {
+    let d = match_pair(&l.view(), &r.view(), o).unwrap();
+    assert!(
+        d.disparity.pixels().iter().all(|v| v.is_finite()),
+        "non-finite disparity"
+    );
+    assert!(
+        d.confidence
+            .pixels()
+            .iter()
+            .all(|v| (0.0..=1.0).contains(v)),
+        "confidence out of [0, 1]"
+    );
+    d
+}
+
+/// Mean absolute error against `truth` over pixels with `x ≥ margin` (left of it has no match).
+fn mean_error(d: &Raster<f32>, margin: usize, truth: impl Fn(usize, usize) -> f32) -> f32 {
+    let (w, h) = (d.width(), d.height());
+    let mut sum = 0.0;
+    let mut n = 0;
+    for y in 3..h - 3 {
+        for x in margin..w - 3 {
+            sum += (d.get(x, y) - truth(x, y)).abs();
+            n += 1;
+        }
+    }
+    sum / n as f32
+}
+
+#[test]
+fn bad_input_gets_clear_errors() {
+    let a = gray(32, 16, |x, y| texture(x as f32, y as f32));
+    let b = gray(30, 16, |x, y| texture(x as f32, y as f32));
+    let e = match_pair(&a.view(), &b.view(), &opts(8)).unwrap_err();
+    assert!(
+        matches!(e, Error::SizeMismatch(_)) && e.to_string().contains("32x16"),
+        "{e}"
+    );
+    let thin = gray(1, 16, |_, _| 5);
+    let e = match_pair(&thin.view(), &thin.view(), &opts(1)).unwrap_err();
+    assert!(e.to_string().contains("1x16"), "{e}");
+    let row = gray(16, 1, |x, _| x as u8);
+    assert!(match_pair(&row.view(), &row.view(), &opts(1)).is_err());
+    assert!(Image::from_bytes(0, 5, PixelFormat::Gray8, vec![]).is_err());
+    let e = match_pair(&a.view(), &a.view(), &opts(0)).unwrap_err();
+    assert!(e.to_string().contains("max_disparity"), "{e}");
+    let e = match_pair(&a.view(), &a.view(), &opts(32)).unwrap_err();
+    assert!(e.to_string().contains("width"), "{e}");
+    let bad_calib = StereoCalibration {
+        baseline_m: -1.0,
+        ..assumed_calibration(32, 16).unwrap()
+    };
+    assert!(depth_map(&Raster::filled(2, 2, 1.0), &bad_calib).is_err());
+    let nan_calib = StereoCalibration {
+        focal_px: f64::NAN,
+        ..assumed_calibration(32, 16).unwrap()
+    };
+    assert!(depth_map(&Raster::filled(2, 2, 1.0), &nan_calib).is_err());
+}
+
+#[test]
+fn extreme_but_legal_pairs_give_finite_output() {
+    let (w, h) = (64, 40);
+    let flat = gray(w, h, |_, _| 90);
+    let white = gray(w, h, |_, _| 255);
+    let noise_l = gray(w, h, |x, y| ((x * 7919 + y * 6151) % 251) as u8);
+    let noise_r = gray(w, h, |x, y| ((x * 4241 + y * 1543 + 17) % 253) as u8);
+    let other = gray(w, h, |x, y| texture(x as f32 + 500.0, y as f32 + 300.0));
+    let tex = gray(w, h, |x, y| texture(x as f32, y as f32));
+    for preset in Preset::ALL {
+        let o = StereoOptions {
+            max_disparity: 16,
+            ..StereoOptions::preset(preset)
+        };
+        let d = run(&flat, &flat, &o);
+        // Flat and identical: every disparity costs the same, the smallest wins.
+        assert!(d.disparity.pixels().iter().all(|&v| v == 0.0), "{preset}");
+        run(&white, &white, &o);
+        run(&noise_l, &noise_r, &o);
+        // No overlap: the right view shows something else entirely.
+        run(&tex, &other, &o);
+    }
+    for o in [
+        StereoOptions::thesis(),
+        StereoOptions {
+            fill: false,
+            ..opts(16)
+        },
+    ] {
+        let o = StereoOptions {
+            max_disparity: 16,
+            ..o
+        };
+        let d = match_pair(&noise_l.view(), &noise_r.view(), &o).unwrap();
+        assert!(d
+            .disparity
+            .pixels()
+            .iter()
+            .all(|v| v.is_nan() || (0.0..=16.0).contains(v)));
+    }
+    // No fill keeps holes as NaN, with confidence 0 there.
+    let d = match_pair(
+        &noise_l.view(),
+        &noise_r.view(),
+        &StereoOptions {
+            fill: false,
+            ..opts(16)
+        },
+    )
+    .unwrap();
+    assert!(d.disparity.pixels().iter().any(|v| v.is_nan()));
+    for (v, c) in d.disparity.pixels().iter().zip(d.confidence.pixels()) {
+        assert!(!v.is_nan() || *c == 0.0);
+    }
+}
+
+#[test]
+fn identical_images_give_zero_everywhere() {
+    let img = gray(80, 50, |x, y| texture(x as f32, y as f32));
+    for o in [
+        opts(20),
+        StereoOptions::preset(Preset::Fast),
+        StereoOptions::thesis(),
+    ] {
+        let o = StereoOptions {
+            max_disparity: 20,
+            ..o
+        };
+        let d = run(&img, &img, &o);
+        assert!(
+            d.disparity.pixels().iter().all(|&v| v == 0.0),
+            "{:?}",
+            o.aggregation
+        );
+    }
+}
+
+#[test]
+fn tiny_ranges_and_narrow_images_work() {
+    // Max disparity 1 on a shift of 1.
+    let l = gray(48, 24, |x, y| texture(x as f32, y as f32));
+    let r = gray(48, 24, |x, y| texture(x as f32 + 1.0, y as f32));
+    let d = run(&l, &r, &opts(1));
+    assert!(mean_error(&d.disparity, 4, |_, _| 1.0) < 0.1);
+    // 16 pixels wide.
+    let l = gray(16, 30, |x, y| texture(x as f32, y as f32));
+    let r = gray(16, 30, |x, y| texture(x as f32 + 3.0, y as f32));
+    for preset in Preset::ALL {
+        let o = StereoOptions {
+            max_disparity: 8,
+            ..StereoOptions::preset(preset)
+        };
+        run(&l, &r, &o);
+    }
+    let d = run(&l, &r, &opts(8));
+    assert!(mean_error(&d.disparity, 6, |_, _| 3.0) < 0.5);
+}
+
+#[test]
+fn huge_penalties_do_not_overflow() {
+    let l = gray(64, 40, |x, y| texture(x as f32, y as f32));
+    let r = gray(64, 40, |x, y| texture(x as f32 + 5.0, y as f32));
+    let o = StereoOptions {
+        p1: 60_000,
+        p2: u16::MAX,
+        ..opts(16)
+    };
+    let d = run(&l, &r, &o);
+    assert!(mean_error(&d.disparity, 20, |_, _| 5.0) < 0.2);
+}
+
+#[test]
+fn fronto_parallel_plane_has_sub_pixel_accuracy() {
+    let (w, h) = (120, 60);
+    for truth in [7.0f32, 7.25, 7.5, 9.8] {
+        let l = gray(w, h, |x, y| texture(x as f32, y as f32));
+        let r = gray(w, h, |x, y| texture(x as f32 + truth, y as f32));
+        for o in [
+            opts(24),
+            StereoOptions {
+                max_disparity: 24,
+                ..StereoOptions::preset(Preset::Quality)
+            },
+        ] {
+            let d = run(&l, &r, &o);
+            let e = mean_error(&d.disparity, 30, |_, _| truth);
+            assert!(e < 0.1, "disparity {truth}: mean error {e}");
+        }
+    }
+}
+
+/// Background plane at disparity 4 on the left, foreground at 12 from column 60 on.
+fn step_pair(w: usize, h: usize) -> (Image, Image, impl Fn(usize, usize) -> f32) {
+    let edge = 60.0;
+    let (bg, fg) = (4.0, 12.0);
+    let back = |x: f32, y: f32| texture(x, y);
+    let front = |x: f32, y: f32| texture(x + 1000.0, y + 77.0);
+    let l = gray(w, h, |x, y| {
+        if (x as f32) < edge {
+            back(x as f32, y as f32)
+        } else {
+            front(x as f32, y as f32)
+        }
+    });
+    let r = gray(w, h, |x, y| {
+        let (xb, xf) = (x as f32 + bg, x as f32 + fg);
+        if xf >= edge {
+            front(xf, y as f32)
+        } else {
+            back(xb, y as f32)
+        }
+    });
+    (
+        l,
+        r,
+        move |x: usize, _| if (x as f32) < edge { bg } else { fg },
+    )
+}
+
+/// Pixels with an error of at least `tol` px, as (x, y), outside `skip` px of the step at x = 60.
+fn step_errors(
+    d: &Disparity,
+    truth: &impl Fn(usize, usize) -> f32,
+    w: usize,
+    h: usize,
+    tol: f32,
+) -> Vec<(usize, usize)> {
+    let mut bad = Vec::new();
+    for y in 4..h - 4 {
+        for x in 20..w - 4 {
+            if (d.disparity.get(x, y) - truth(x, y)).abs() >= tol {
+                bad.push((x, y));
+            }
+        }
+    }
+    bad
+}
+
+#[test]
+fn a_step_edge_stays_sharp() {
+    let (w, h) = (140, 50);
+    let (l, r, truth) = step_pair(w, h);
+    let evaluated = ((h - 8) * (w - 24)) as f32;
+    for preset in Preset::ALL {
+        let o = StereoOptions {
+            max_disparity: 24,
+            ..StereoOptions::preset(preset)
+        };
+        let d = run(&l, &r, &o);
+        let bad = step_errors(&d, &truth, w, h, 0.5);
+        let beyond = |px: usize| bad.iter().filter(|(x, _)| x.abs_diff(60) > px).count();
+        // Occluded background (x in 52..60) must be filled as background, the edge must not
+        // spread: within 2 px of it everywhere but in a few rows, and always within 10 px.
+        assert_eq!(beyond(10), 0, "{preset}: {bad:?}");
+        let share = beyond(2) as f32 / evaluated;
+        let limit = if preset == Preset::Fast { 0.05 } else { 0.005 };
+        assert!(
+            share <= limit,
+            "{preset}: {:.2} % wrong beyond 2 px: {bad:?}",
+            share * 100.0
+        );
+    }
+}
+
+#[test]
+fn slanted_plane_is_followed() {
+    let (w, h) = (160, 80);
+    // d(x, y) = a + b·x + c·y in left coordinates; right pixel x_r shows left x_l = (x_r + a + c·y)/(1 − b).
+    let (a, b, c) = (6.0f32, 0.05f32, 0.04f32);
+    let truth = move |x: usize, y: usize| a + b * x as f32 + c * y as f32;
+    let l = gray(w, h, |x, y| texture(x as f32, y as f32));
+    let r = gray(w, h, |x, y| {
+        texture((x as f32 + a + c * y as f32) / (1.0 - b), y as f32)
+    });
+    for o in [
+        opts(24),
+        StereoOptions {
+            max_disparity: 24,
+            ..StereoOptions::preset(Preset::Fast)
+        },
+    ] {
+        let d = run(&l, &r, &o);
+        let e = mean_error(&d.disparity, 24, truth);
+        assert!(e < 0.25, "mean error {e}");
+    }
+}
+
+#[test]
+fn thesis_method_finds_the_plane() {
+    let l = gray(100, 40, |x, y| texture(x as f32, y as f32));
+    let r = gray(100, 40, |x, y| texture(x as f32 + 6.0, y as f32));
+    let o = StereoOptions {
+        max_disparity: 16,
+        ..StereoOptions::thesis()
+    };
+    let d = run(&l, &r, &o);
+    assert!(mean_error(&d.disparity, 24, |_, _| 6.0) < 0.25);
+    assert!(d.stats.timings.iter().any(|(n, _)| n == "stereo.aggregate"));
+}
+
+#[test]
+fn coarse_to_fine_matches_the_full_search() {
+    let (w, h) = (160, 64);
+    let (l, r, truth) = step_pair(w, h);
+    let full = run(&l, &r, &opts(40));
+    let o = StereoOptions {
+        coarse_levels: 1,
+        coarse_window: 12,
+        ..opts(40)
+    };
+    let c2f = run(&l, &r, &o);
+    assert!(c2f.stats.timings.iter().any(|(n, _)| n == "stereo.coarse"));
+    // Away from the depth step both are right to a pixel; at the step the narrowed search may
+    // spread the edge by a few pixels.
+    for d in [&full, &c2f] {
+        let bad = step_errors(d, &truth, w, h, 1.0);
+        assert!(bad.iter().all(|(x, _)| x.abs_diff(60) <= 6), "{bad:?}");
+    }
+}
+
+#[test]
+fn misaligned_pair_is_corrected_before_matching() {
+    let (w, h) = (200, 120);
+    let l = gray(w, h, |x, y| texture(x as f32, y as f32));
+    let r = gray(w, h, |x, y| texture(x as f32 + 5.0, y as f32 - 4.0));
+    let plain = run(&l, &r, &opts(16));
+    let o = StereoOptions {
+        correct_misalignment: true,
+        ..opts(16)
+    };
+    let fixed = run(&l, &r, &o);
+    let (dy, _) = fixed.stats.misalignment.unwrap();
+    assert!((dy - 4.0).abs() <= 0.5, "dy {dy}");
+    let e_fixed = mean_error(&fixed.disparity, 30, |_, _| 5.0);
+    assert!(e_fixed < 0.3, "{e_fixed}");
+    assert!(e_fixed < mean_error(&plain.disparity, 30, |_, _| 5.0));
+}
+
+#[test]
+fn depth_follows_the_calibration() {
+    let calib = StereoCalibration::from_focal_baseline(1000.0, 0.1, 8, 8).unwrap();
+    let d = Raster::from_vec(3, 1, vec![50.0, f32::NAN, 0.0]);
+    let z = depth_map(&d, &calib).unwrap();
+    assert!((z.get(0, 0) - 2.0).abs() < 1e-6);
+    assert!(z.get(1, 0).is_nan() && z.get(2, 0).is_nan());
+    // Without calibration: f = w / (2 tan 30°), baseline 1.
+    let assumed = assumed_calibration(640, 480).unwrap();
+    assert!((assumed.focal_px - 320.0 / (30f64).to_radians().tan()).abs() < 1e-9);
+}
+
+#[test]
+fn stats_name_the_sub_stages_and_memory() {
+    let l = gray(96, 48, |x, y| texture(x as f32, y as f32));
+    let r = gray(96, 48, |x, y| texture(x as f32 + 3.0, y as f32));
+    let d = run(&l, &r, &opts(16));
+    let names: Vec<&str> = d.stats.timings.iter().map(|(n, _)| n.as_str()).collect();
+    for n in [
+        "stereo.cost",
+        "stereo.aggregate",
+        "stereo.decide",
+        "stereo.fill",
+    ] {
+        assert!(names.contains(&n), "{names:?}");
+    }
+    // At least the aggregated volume, 2 bytes per pixel and disparity.
+    assert!(d.stats.peak_working_bytes >= 96 * 48 * 17 * 2);
+    assert!((0.0..=1.0).contains(&d.stats.invalid_fraction));
+}
