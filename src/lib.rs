@@ -26,6 +26,7 @@ pub mod image;
 #[cfg(feature = "gpu")]
 pub mod render;
 pub mod scene;
+pub mod stereo;
 pub mod trace;
 
 pub use error::{Error, Result, Status};
