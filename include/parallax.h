@@ -89,6 +89,50 @@ typedef uint32_t plx_pixel_format;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// Presets of `plx_stereo_options::preset`.
+enum plx_stereo_preset
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // Census 5×5, 4-path SGM after a half-resolution pass; fastest.
+  PLX_STEREO_PRESET_FAST = 0,
+  // Census 9×7, 8-path SGM, consistency checks, fill and edge-aware smoothing (default).
+  PLX_STEREO_PRESET_BALANCED = 1,
+  // As balanced with stricter checks and more smoothing.
+  PLX_STEREO_PRESET_QUALITY = 2,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum plx_stereo_preset plx_stereo_preset;
+#else
+typedef uint32_t plx_stereo_preset;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+// Matching methods of `plx_stereo_options::method`.
+enum plx_stereo_method
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // The preset's own method.
+  PLX_STEREO_METHOD_PRESET_DEFAULT = 0,
+  // Census cost, semi-global matching along 8 paths.
+  PLX_STEREO_METHOD_CENSUS_SGM8 = 1,
+  // Census cost, semi-global matching along 4 paths.
+  PLX_STEREO_METHOD_CENSUS_SGM4 = 2,
+  // The thesis' method: SAD blocks and scanline dynamic programming.
+  PLX_STEREO_METHOD_SAD_DP = 3,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum plx_stereo_method plx_stereo_method;
+#else
+typedef uint32_t plx_stereo_method;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
 // Opaque. Thread-safe: may be shared by scenes on several threads. Freed by `plx_context_free`;
 // scenes made from it keep what they need alive, so it may be freed before them.
 typedef struct plx_context plx_context;
@@ -140,6 +184,36 @@ typedef struct plx_calibration {
   // Largest disparity worth searching, pixels; 0 = unknown.
   uint32_t max_disparity;
 } plx_calibration;
+
+// Options of the stereo matcher. Initialise with `plx_stereo_options_init`, then change fields.
+typedef struct plx_stereo_options {
+  // `sizeof(plx_stereo_options)` as the caller compiled it.
+  size_t size;
+  // A `plx_stereo_preset` value (default `PLX_STEREO_PRESET_BALANCED`).
+  uint32_t preset;
+  // Largest disparity searched, pixels; 0 = from the calibration (`max_disparity`), else a
+  // quarter of the image width. Must be less than the image width.
+  uint32_t max_disparity;
+  // A `plx_stereo_method` value (default `PLX_STEREO_METHOD_PRESET_DEFAULT`).
+  uint32_t method;
+  // 1 = dense output (holes filled, the default); 0 = pixels without an estimate stay NaN.
+  uint32_t fill;
+  // Half-resolution levels matched first to narrow the search; -1 = the preset's choice.
+  int32_t coarse_levels;
+} plx_stereo_options;
+
+// A borrowed grid of floats in library memory: `height` rows of `stride` bytes, each holding
+// `width` floats. Valid until the next call that changes the scene it came from.
+typedef struct plx_float_view {
+  // First value of the top row.
+  const float *data;
+  // Values per row.
+  uint32_t width;
+  // Rows.
+  uint32_t height;
+  // Bytes from one row to the next.
+  size_t stride;
+} plx_float_view;
 
 #ifdef __cplusplus
 extern "C" {
@@ -230,6 +304,44 @@ const char *plx_version(void);
 // # Safety
 // `handle` is NULL or a live handle; `buf` points to `len` writable bytes.
 enum plx_status plx_last_error_message(const void *handle, char *buf, size_t len, size_t *needed);
+
+// Fills `options` with the defaults and its `size`.
+//
+// # Safety
+// `options` is NULL or points to a writable `plx_stereo_options`.
+enum plx_status plx_stereo_options_init(struct plx_stereo_options *options);
+
+// Sets the stereo matcher's options (NULL = back to the defaults). Errors: `INVALID_ARGUMENT`
+// for an unknown preset or method or a value out of range. On error the scene is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `options` is NULL or valid for `options->size` bytes.
+enum plx_status plx_scene_set_stereo_options(struct plx_scene *scene,
+                                             const struct plx_stereo_options *options);
+
+// The disparity of the left view in pixels (`x_left − x_right`); NaN where there is no estimate
+// (only with `fill = 0`). Runs the stereo matcher unless the pair and options are unchanged since
+// the last call. Errors: `NOT_AVAILABLE` without a stereo pair; `INVALID_ARGUMENT` when the
+// options do not fit the images (e.g. `max_disparity` ≥ width).
+//
+// # Safety
+// `scene` is a live scene; `out` is writable.
+enum plx_status plx_scene_disparity(struct plx_scene *scene, struct plx_float_view *out);
+
+// The matcher's confidence in [0, 1] per pixel (thesis eq. 3.5; filled pixels get 0). Same
+// computation, errors and lifetime as `plx_scene_disparity`.
+//
+// # Safety
+// `scene` is a live scene; `out` is writable.
+enum plx_status plx_scene_confidence(struct plx_scene *scene, struct plx_float_view *out);
+
+// Depth of the left view in metres, `Z = f·B/(d + doffs)`; NaN where unknown. Without a
+// calibration, depth is up to scale (60° field of view, baseline 1; the report warns). Same
+// errors and lifetime as `plx_scene_disparity`.
+//
+// # Safety
+// `scene` is a live scene; `out` is writable.
+enum plx_status plx_scene_depth(struct plx_scene *scene, struct plx_float_view *out);
 
 #if defined(PLX_TEST_HOOKS)
 // Panics inside the boundary on purpose: must return `PLX_STATUS_PANIC` with a message on the

@@ -9,9 +9,11 @@
 
 use std::sync::Arc;
 
+use crate::camera::StereoCalibration;
 use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::image::{Image, ImageView, Raster};
+use crate::stereo::{self, Disparity, StereoOptions};
 use crate::trace::{StageStatus, Trace};
 
 /// A value set by the host, with the version it was set at (0 = never set).
@@ -35,6 +37,8 @@ impl<T> Default for Input<T> {
 struct Product<T> {
     value: Option<Arc<T>>,
     computed_from: Vec<u64>,
+    /// Incremented on every recomputation: the version downstream products depend on.
+    generation: u64,
 }
 
 impl<T> Default for Product<T> {
@@ -42,6 +46,7 @@ impl<T> Default for Product<T> {
         Product {
             value: None,
             computed_from: Vec::new(),
+            generation: 0,
         }
     }
 }
@@ -70,6 +75,7 @@ impl<T> Product<T> {
         let value = Arc::new(trace.time(name, why, compute)?);
         self.value = Some(Arc::clone(&value));
         self.computed_from = versions.to_vec();
+        self.generation += 1;
         Ok(value)
     }
 }
@@ -94,6 +100,13 @@ pub struct LoadedPair {
     pub right_luma: Raster<f32>,
 }
 
+/// Stereo options as the host set them; `max_disparity: None` = choose automatically.
+#[derive(Debug, Clone, Default)]
+struct StereoSettings {
+    options: StereoOptions,
+    max_disparity: Option<u32>,
+}
+
 /// A photo's reconstruction and everything inserted into it.
 ///
 /// Not thread-safe for concurrent calls (`Send`, not `Sync`): use one scene from one thread at a
@@ -103,8 +116,11 @@ pub struct Scene {
     context: Arc<Context>,
     next_version: u64,
     stereo_pair: Input<StereoPair>,
-    calibration: Input<crate::camera::StereoCalibration>,
+    calibration: Input<StereoCalibration>,
+    stereo_options: Input<StereoSettings>,
     loaded_pair: Product<LoadedPair>,
+    disparity: Product<Disparity>,
+    depth: Product<Raster<f32>>,
     last_trace: Trace,
 }
 
@@ -116,7 +132,10 @@ impl Scene {
             next_version: 0,
             stereo_pair: Input::default(),
             calibration: Input::default(),
+            stereo_options: Input::default(),
             loaded_pair: Product::default(),
+            disparity: Product::default(),
+            depth: Product::default(),
             last_trace: {
                 let mut t = Trace::new();
                 t.finish();
@@ -165,7 +184,7 @@ impl Scene {
     ///
     /// # Errors
     /// `InvalidArgument` when a value is not finite or not positive; the scene is unchanged.
-    pub fn set_calibration(&mut self, calibration: crate::camera::StereoCalibration) -> Result<()> {
+    pub fn set_calibration(&mut self, calibration: StereoCalibration) -> Result<()> {
         calibration.validate()?;
         self.calibration.value = Some(calibration);
         self.calibration.version = self.bump();
@@ -173,8 +192,72 @@ impl Scene {
     }
 
     /// The calibration, if the host gave one.
-    pub fn calibration(&self) -> Option<&crate::camera::StereoCalibration> {
+    pub fn calibration(&self) -> Option<&StereoCalibration> {
         self.calibration.value.as_ref()
+    }
+
+    /// Sets the stereo matcher's options, `max_disparity` included (it is checked against the
+    /// image width when matching). Without this call the scene uses the `balanced` preset with
+    /// `max_disparity` from the calibration (`ndisp`) when it has one, else
+    /// [`auto_max_disparity`] of the width.
+    ///
+    /// # Errors
+    /// `InvalidArgument` for an option out of range; the scene is unchanged.
+    pub fn set_stereo_options(&mut self, options: StereoOptions) -> Result<()> {
+        let max_disparity = options.max_disparity;
+        self.set_stereo_options_auto_range(options, Some(max_disparity))
+    }
+
+    /// Like [`Scene::set_stereo_options`], but with `max_disparity: None` the range is chosen as
+    /// without options (calibration, else [`auto_max_disparity`]).
+    ///
+    /// # Errors
+    /// `InvalidArgument` for an option out of range; the scene is unchanged.
+    pub fn set_stereo_options_auto_range(
+        &mut self,
+        options: StereoOptions,
+        max_disparity: Option<u32>,
+    ) -> Result<()> {
+        // u32::MAX stands for "any width": only the width-independent checks apply here.
+        let mut checked = options.clone();
+        checked.max_disparity = max_disparity.unwrap_or(1);
+        checked.validate(u32::MAX)?;
+        self.stereo_options.value = Some(StereoSettings {
+            options,
+            max_disparity,
+        });
+        self.stereo_options.version = self.bump();
+        Ok(())
+    }
+
+    /// Back to the default stereo options.
+    pub fn reset_stereo_options(&mut self) {
+        self.stereo_options.value = None;
+        self.stereo_options.version = self.bump();
+    }
+
+    /// Whether the disparity range comes from the scene's automatic choice (not the host).
+    fn stereo_range_is_automatic(&self) -> bool {
+        self.stereo_options
+            .value
+            .as_ref()
+            .is_none_or(|s| s.max_disparity.is_none())
+    }
+
+    /// The options the next match uses (see [`Scene::set_stereo_options`]).
+    pub fn effective_stereo_options(&self) -> StereoOptions {
+        let settings = self.stereo_options.value.clone().unwrap_or_default();
+        let width = self.photo_size().map(|(w, _)| w).unwrap_or(0);
+        let max_disparity = settings.max_disparity.unwrap_or_else(|| {
+            self.calibration
+                .value
+                .and_then(|c| c.max_disparity)
+                .unwrap_or_else(|| auto_max_disparity(width))
+        });
+        StereoOptions {
+            max_disparity,
+            ..settings.options
+        }
     }
 
     /// Size of the photo (the left view), if a stereo pair was given.
@@ -190,11 +273,7 @@ impl Scene {
     /// # Errors
     /// `NotAvailable` when no stereo pair was set.
     pub fn loaded_pair(&mut self) -> Result<Arc<LoadedPair>> {
-        let mut trace = Trace::new();
-        let result = self.loaded_pair_traced(&mut trace);
-        trace.finish();
-        self.last_trace = trace;
-        result
+        self.traced(|scene, trace| scene.loaded_pair_traced(trace))
     }
 
     fn loaded_pair_traced(&mut self, trace: &mut Trace) -> Result<Arc<LoadedPair>> {
@@ -219,10 +298,101 @@ impl Scene {
             })
     }
 
+    /// Runs one product request with a fresh trace, kept afterwards as [`Scene::last_trace`].
+    fn traced<T>(&mut self, request: impl FnOnce(&mut Self, &mut Trace) -> Result<T>) -> Result<T> {
+        let mut trace = Trace::new();
+        let result = request(self, &mut trace);
+        trace.finish();
+        self.last_trace = trace;
+        result
+    }
+
+    /// The disparity of the left view, with its confidence (product `stereo`).
+    ///
+    /// # Errors
+    /// `NotAvailable` without a stereo pair; `InvalidArgument` when the options do not fit the
+    /// images (e.g. `max_disparity` ≥ width).
+    pub fn disparity(&mut self) -> Result<Arc<Disparity>> {
+        self.traced(|scene, trace| scene.disparity_traced(trace))
+    }
+
+    fn disparity_traced(&mut self, trace: &mut Trace) -> Result<Arc<Disparity>> {
+        let Some(pair) = &self.stereo_pair.value else {
+            return Err(Error::NotAvailable(
+                "no stereo pair: set one with set_stereo_pair".into(),
+            ));
+        };
+        let options = self.effective_stereo_options();
+        // Without explicit options the calibration's ndisp chooses the range, so it is an input.
+        let versions = [
+            self.stereo_pair.version,
+            self.stereo_options.version,
+            if self.stereo_range_is_automatic() {
+                self.calibration.version
+            } else {
+                0
+            },
+        ];
+        let disparity = self
+            .disparity
+            .get_or_compute("stereo", &versions, trace, |_| {
+                stereo::match_pair(&pair.left.view(), &pair.right.view(), &options)
+            })?;
+        if trace
+            .stages()
+            .last()
+            .is_some_and(|s| s.name == "stereo" && s.status == StageStatus::Computed)
+        {
+            for (name, ms) in &disparity.stats.timings {
+                trace.record(name.clone(), StageStatus::Computed, *ms, "part of stereo");
+            }
+        }
+        Ok(disparity)
+    }
+
+    /// Depth of the left view in metres, `Z = f·B/(d + doffs)`, NaN where unknown (product
+    /// `depth`). Without a calibration, depth is up to scale ([`stereo::assumed_calibration`]) and
+    /// the trace carries a warning.
+    ///
+    /// # Errors
+    /// As [`Scene::disparity`].
+    pub fn depth(&mut self) -> Result<Arc<Raster<f32>>> {
+        self.traced(|scene, trace| scene.depth_traced(trace))
+    }
+
+    fn depth_traced(&mut self, trace: &mut Trace) -> Result<Arc<Raster<f32>>> {
+        let disparity = self.disparity_traced(trace)?;
+        let (width, height) = (
+            disparity.disparity.width() as u32,
+            disparity.disparity.height() as u32,
+        );
+        let calibration = match self.calibration.value {
+            Some(c) => c,
+            None => {
+                trace.warn(format!(
+                    "no calibration: depth is up to scale (assumed {}° horizontal field of view, baseline 1)",
+                    stereo::ASSUMED_HORIZONTAL_FOV_DEG
+                ));
+                stereo::assumed_calibration(width, height)?
+            }
+        };
+        let versions = [self.disparity.generation, self.calibration.version];
+        self.depth.get_or_compute("depth", &versions, trace, |_| {
+            stereo::depth_map(&disparity.disparity, &calibration)
+        })
+    }
+
     /// The trace of the last call that asked for a product.
     pub fn last_trace(&self) -> &Trace {
         &self.last_trace
     }
+}
+
+/// The disparity range searched when neither the host nor the calibration gives one: a quarter of
+/// the width (at least 1, less than the width). That covers Middlebury-like scenes, whose nearest
+/// objects sit at a disparity of 20–25 % of the width.
+pub fn auto_max_disparity(width: u32) -> u32 {
+    (width / 4).clamp(1, width.saturating_sub(1).max(1))
 }
 
 #[cfg(test)]
@@ -300,6 +470,109 @@ mod tests {
         ));
         assert!(scene.photo_size().is_none());
         assert!(matches!(scene.loaded_pair(), Err(Error::NotAvailable(_))));
+    }
+
+    /// A random texture and the same texture seen 6 px further left in the right view.
+    fn shifted_pair(w: u32, h: u32, shift: u32) -> (Image, Image) {
+        let texture = |x: i64, y: i64| -> u8 {
+            let mut v = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) as u64;
+            v ^= v >> 13;
+            v = v.wrapping_mul(0x5bd1_e995);
+            (v >> 24) as u8
+        };
+        let make = |offset: i64| {
+            let data = (0..h as i64)
+                .flat_map(|y| (0..w as i64).map(move |x| (x, y)))
+                .map(|(x, y)| texture(x + offset, y))
+                .collect();
+            Image::from_bytes(w, h, PixelFormat::Gray8, data).unwrap()
+        };
+        (make(0), make(-(shift as i64)))
+    }
+
+    #[test]
+    fn depth_follows_disparity_and_calibration_without_rematching() {
+        let mut scene = scene_with(ImageLimits::default());
+        let (l, r) = shifted_pair(96, 48, 6);
+        scene.set_stereo_pair(&l.view(), &r.view()).unwrap();
+        scene
+            .set_stereo_options(StereoOptions {
+                max_disparity: 16,
+                ..StereoOptions::default()
+            })
+            .unwrap();
+        let disparity = scene.disparity().unwrap();
+        assert_eq!(
+            scene.last_trace().stage("stereo").unwrap().status,
+            StageStatus::Computed
+        );
+        assert!(scene
+            .last_trace()
+            .stages()
+            .iter()
+            .any(|s| s.name.starts_with("stereo.")));
+        // Away from the left border (no match there), the disparity is the shift.
+        let d = *disparity.disparity.get(60, 24);
+        assert!((d - 6.0).abs() < 0.25, "disparity {d}");
+
+        // No calibration: depth up to scale, with a warning.
+        let depth = scene.depth().unwrap();
+        assert_eq!(
+            scene.last_trace().stage("stereo").unwrap().status,
+            StageStatus::Reused
+        );
+        assert_eq!(scene.last_trace().warnings().len(), 1);
+        assert!(depth.get(60, 24).is_finite());
+
+        // A calibration changes depth, not disparity: Z = f·B/d = 600·0.1/6 = 10 m.
+        scene
+            .set_calibration(StereoCalibration::from_focal_baseline(600.0, 0.1, 96, 48).unwrap())
+            .unwrap();
+        let depth = scene.depth().unwrap();
+        assert_eq!(
+            scene.last_trace().stage("stereo").unwrap().status,
+            StageStatus::Reused
+        );
+        assert_eq!(
+            scene.last_trace().stage("depth").unwrap().status,
+            StageStatus::Computed
+        );
+        let z = *depth.get(60, 24);
+        assert!((z - 10.0).abs() < 0.5, "depth {z}");
+        assert!(scene.last_trace().warnings().is_empty());
+    }
+
+    #[test]
+    fn calibration_ndisp_sets_the_range_unless_options_do() {
+        let mut scene = scene_with(ImageLimits::default());
+        let (l, r) = shifted_pair(96, 48, 6);
+        scene.set_stereo_pair(&l.view(), &r.view()).unwrap();
+        assert_eq!(
+            scene.effective_stereo_options().max_disparity,
+            auto_max_disparity(96)
+        );
+        let mut c = StereoCalibration::from_focal_baseline(600.0, 0.1, 96, 48).unwrap();
+        c.max_disparity = Some(20);
+        scene.set_calibration(c).unwrap();
+        assert_eq!(scene.effective_stereo_options().max_disparity, 20);
+        scene
+            .set_stereo_options(StereoOptions {
+                max_disparity: 12,
+                ..StereoOptions::default()
+            })
+            .unwrap();
+        assert_eq!(scene.effective_stereo_options().max_disparity, 12);
+        // A range that does not fit the image is an error when matching, naming the option.
+        scene
+            .set_stereo_options(StereoOptions {
+                max_disparity: 200,
+                ..StereoOptions::default()
+            })
+            .unwrap();
+        let err = scene.disparity().unwrap_err();
+        assert!(err.to_string().contains("max_disparity"), "{err}");
+        assert_eq!(auto_max_disparity(1), 1);
+        assert_eq!(auto_max_disparity(3), 1);
     }
 
     #[test]

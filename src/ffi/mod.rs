@@ -20,6 +20,7 @@ mod handle;
 pub mod image;
 pub mod scene;
 pub mod status;
+pub mod stereo;
 #[cfg(feature = "test-hooks")]
 pub mod test_hooks;
 

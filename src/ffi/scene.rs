@@ -47,7 +47,7 @@ pub unsafe extern "C" fn plx_scene_free(scene: *mut plx_scene) {
 }
 
 /// Borrows the scene handle, reporting a NULL or foreign pointer in the global error slot.
-unsafe fn with_scene(
+pub(crate) unsafe fn with_scene(
     scene: *mut plx_scene,
     body: impl FnOnce(&mut Scene) -> Result<(), super::boundary::CallError>,
 ) -> Status {
