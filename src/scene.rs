@@ -472,7 +472,7 @@ mod tests {
         assert!(matches!(scene.loaded_pair(), Err(Error::NotAvailable(_))));
     }
 
-    /// A random texture and the same texture seen 6 px further left in the right view.
+    /// A random texture, and the right view seeing it `shift` px further left (disparity `shift`).
     fn shifted_pair(w: u32, h: u32, shift: u32) -> (Image, Image) {
         let texture = |x: i64, y: i64| -> u8 {
             let mut v = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) as u64;
@@ -487,7 +487,7 @@ mod tests {
                 .collect();
             Image::from_bytes(w, h, PixelFormat::Gray8, data).unwrap()
         };
-        (make(0), make(-(shift as i64)))
+        (make(0), make(shift as i64))
     }
 
     #[test]
