@@ -81,9 +81,8 @@ pub fn aggregate(
             .map(Mutex::new)
             .collect();
         let sweep = |forward: bool| {
-            super::simd::dispatch(|| {
-                Sweep::new(cost, guide, bases, k, paths == 8, penalties, forward).run(&rows)
-            })
+            let sweep = Sweep::new(cost, guide, bases, k, paths == 8, penalties, forward);
+            run_sweep(&sweep, &rows)
         };
         rayon::join(|| sweep(true), || sweep(false));
     }
@@ -102,6 +101,15 @@ pub fn working_bytes(w: usize, h: usize, k: usize) -> usize {
     let volume = w * h * k * 2 + w * h * 2;
     let per_sweep = w * k + 2 * 3 * w * (k + 2) * 2 + 2 * (k + 2) * 2 + 3 * 2 * w * 2;
     volume + 2 * per_sweep
+}
+
+type RowLocks<'r> = [Mutex<(&'r mut [u16], &'r mut [u16])>];
+
+crate::avx2_variant!(fn run_sweep<'a, 'b, 'r>(sweep: &'b Sweep<'a>, rows: &'b RowLocks<'r>) => sweep_body);
+
+#[inline(always)]
+fn sweep_body(sweep: &Sweep<'_>, rows: &RowLocks<'_>) {
+    sweep.run(rows)
 }
 
 struct Sweep<'a> {
@@ -153,7 +161,7 @@ impl<'a> Sweep<'a> {
     }
 
     #[inline(always)]
-    fn run(&self, rows: &[Mutex<(&mut [u16], &mut [u16])>]) {
+    fn run(&self, rows: &RowLocks<'_>) {
         let (w, h, k) = (self.cost.width(), self.cost.height(), self.k);
         let kp = k + 2;
         let mut costs = vec![0u8; w * k];

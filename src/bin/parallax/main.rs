@@ -4,6 +4,8 @@
 //! message on stderr names what was wrong); 2 bad usage (unknown flag, missing argument).
 
 mod common;
+mod depth;
+mod eval;
 mod info;
 
 use clap::{Parser, Subcommand};
@@ -20,12 +22,18 @@ struct Cli {
 enum Command {
     /// Version, compiled features and the GPU adapters found.
     Info(info::Args),
+    /// Disparity, depth and confidence of a rectified stereo pair.
+    Depth(depth::Args),
+    /// Benchmarks against ground truth and peers (`parallax eval stereo`).
+    Eval(eval::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(args) => info::run(args),
+        Command::Depth(args) => depth::run(args),
+        Command::Eval(args) => eval::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
