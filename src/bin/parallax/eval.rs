@@ -172,6 +172,7 @@ fn configurations(preset: &str) -> Result<Vec<(String, String, StereoOptions)>> 
             "census+sgm4",
             StereoOptions {
                 aggregation: Aggregation::Sgm4,
+                coarse_levels: 0,
                 ..b.clone()
             },
         ),
@@ -179,14 +180,13 @@ fn configurations(preset: &str) -> Result<Vec<(String, String, StereoOptions)>> 
             "census+sgm4+c2f",
             StereoOptions {
                 aggregation: Aggregation::Sgm4,
-                coarse_levels: 1,
                 ..b.clone()
             },
         ),
         (
-            "census+sgm8+c2f",
+            "census+sgm8",
             StereoOptions {
-                coarse_levels: 1,
+                coarse_levels: 0,
                 ..b.clone()
             },
         ),
