@@ -52,8 +52,7 @@ pub enum Preset {
     /// equiangular sub-pixel, 5×5 local fit, L/R check, uniqueness 5 %, speckles < 100 px,
     /// background fill, 3 passes of edge-aware smoothing. The default.
     Balanced,
-    /// As `Balanced` but searching the full range at full size, a 7×7 local fit and 4 smoothing
-    /// passes.
+    /// As `Balanced` but searching the full range at full size (no coarse-to-fine).
     Quality,
 }
 
@@ -186,8 +185,6 @@ impl StereoOptions {
             },
             Preset::Quality => StereoOptions {
                 coarse_levels: 0,
-                local_refinement_radius: 3,
-                smoothing_passes: 4,
                 ..balanced
             },
         }

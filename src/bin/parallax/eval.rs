@@ -183,13 +183,6 @@ fn configurations(preset: &str) -> Result<Vec<(String, String, StereoOptions)>> 
                 ..b.clone()
             },
         ),
-        (
-            "census+sgm8",
-            StereoOptions {
-                coarse_levels: 0,
-                ..b.clone()
-            },
-        ),
     ] {
         list.push((name.to_string(), describe(&o), o));
     }
