@@ -48,7 +48,7 @@ pub enum Preset {
     /// Census 5×5, 4-path SGM; a half-size pass narrows each pixel's search to 16 disparities;
     /// light refinement (3×3 local fit, one smoothing pass).
     Fast,
-    /// Census 9×7, 8-path SGM; a half-size pass narrows each pixel's search to 24 disparities;
+    /// Census 9×7, 8-path SGM; a half-size pass narrows each pixel's search to 32 disparities;
     /// equiangular sub-pixel, 5×5 local fit, L/R check, uniqueness 5 %, speckles < 100 px,
     /// background fill, 3 passes of edge-aware smoothing. The default.
     Balanced,
@@ -170,7 +170,7 @@ impl StereoOptions {
             fill: true,
             smoothing_passes: 3,
             coarse_levels: 1,
-            coarse_window: 24,
+            coarse_window: 32,
             correct_misalignment: false,
         };
         match preset {
