@@ -21,28 +21,50 @@ pub struct CensusCost {
 /// Census transform with a `(2rx+1)×(2ry+1)` window (at most 63 neighbours); borders replicate.
 pub fn census_transform(image: &Raster<u8>, rx: usize, ry: usize) -> Vec<u64> {
     let (w, h) = (image.width(), image.height());
+    // Rows padded by rx replicated pixels on each side, so the inner loop has no bounds logic.
+    let pw = w + 2 * rx;
+    let mut padded = vec![0u8; pw * h];
+    for y in 0..h {
+        let row = image.row(y);
+        let dst = &mut padded[y * pw..(y + 1) * pw];
+        dst[rx..rx + w].copy_from_slice(row);
+        let (first, last) = (row[0], row[w - 1]);
+        dst[..rx].fill(first);
+        dst[rx + w..].fill(last);
+    }
     let mut out = vec![0u64; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let rows: Vec<&[u8]> = (0..=2 * ry)
-            .map(|j| image.row((y + j).saturating_sub(ry).min(h - 1)))
-            .collect();
-        let centre = image.row(y);
-        for (x, bits) in row.iter_mut().enumerate() {
-            let c = centre[x];
-            let mut v = 0u64;
-            for (j, r) in rows.iter().enumerate() {
-                for i in 0..=2 * rx {
-                    if j == ry && i == rx {
-                        continue;
-                    }
-                    let xx = (x + i).saturating_sub(rx).min(w - 1);
-                    v = (v << 1) | (r[xx] < c) as u64;
-                }
-            }
-            *bits = v;
-        }
+    out.par_chunks_mut(w).enumerate().for_each(|(y, bits)| {
+        census_row_transform(&padded, pw, h, y, rx, ry, bits);
     });
     out
+}
+
+crate::avx2_variant!(fn census_row_transform<'a>(padded: &'a [u8], pw: usize, h: usize, y: usize, rx: usize, ry: usize, bits: &'a mut [u64]) => census_row_body);
+
+#[inline(always)]
+fn census_row_body(
+    padded: &[u8],
+    pw: usize,
+    h: usize,
+    y: usize,
+    rx: usize,
+    ry: usize,
+    bits: &mut [u64],
+) {
+    let w = bits.len();
+    let centre = &padded[y * pw + rx..y * pw + rx + w];
+    for j in 0..=2 * ry {
+        let yy = (y + j).saturating_sub(ry).min(h - 1);
+        for i in 0..=2 * rx {
+            if j == ry && i == rx {
+                continue;
+            }
+            let neighbour = &padded[yy * pw + i..yy * pw + i + w];
+            for ((b, &n), &c) in bits.iter_mut().zip(neighbour).zip(centre) {
+                *b = (*b << 1) | (n < c) as u64;
+            }
+        }
+    }
 }
 
 impl CensusCost {
@@ -81,9 +103,11 @@ impl CostRows for CensusCost {
         let w = self.width;
         let left = &self.left[y * w..(y + 1) * w];
         let mirrored = &self.right_mirrored[y * w..(y + 1) * w];
-        crate::stereo::simd::dispatch(|| census_row(left, mirrored, bases, k, self.scale, out));
+        census_row_fast(left, mirrored, bases, k, self.scale, out);
     }
 }
+
+crate::avx2_variant!(fn census_row_fast<'a>(left: &'a [u64], mirrored: &'a [u64], bases: Option<&'a [u16]>, k: usize, scale: u16, out: &'a mut [u8]) => census_row);
 
 #[inline(always)]
 fn census_row(

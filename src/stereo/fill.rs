@@ -6,7 +6,7 @@
 //! second-smallest of all 8 when the row has none); a mismatched pixel takes the median of the 8.
 //!
 //! Smoothing is the thesis' cascaded convolution (§3.2.1, Fig. 3.6) made edge-aware: passes of a
-//! 5-tap B-spline kernel whose taps spread 1, 2, 4, … pixels apart (the "à trous" form of a
+//! 3-tap binomial kernel `[1 2 1]/4` whose taps spread 1, 2, 4, … pixels apart (the "à trous" form of a
 //! Gaussian pyramid), where each neighbour's weight is
 //! - its confidence (holes that were filled count little),
 //! - low on Canny edges of the image (the thesis' Canny-based confidence map: disparities right on
@@ -139,9 +139,17 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
                 - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
             let p = y as usize * w + x as usize;
             mag[p] = (gx * gx + gy * gy).sqrt() / 4.0;
-            // Quantise the gradient direction to 0°, 45°, 90°, 135°.
-            let angle = gy.atan2(gx).to_degrees().rem_euclid(180.0);
-            dir[p] = (((angle + 22.5) / 45.0) as u8) % 4;
+            // Quantise the gradient direction to 0°, 45°, 90°, 135° (tan 22.5° ≈ 0.4142).
+            let (ax, ay) = (gx.abs(), gy.abs());
+            dir[p] = if ay <= 0.4142 * ax {
+                0
+            } else if ax <= 0.4142 * ay {
+                2
+            } else if (gx > 0.0) == (gy > 0.0) {
+                1
+            } else {
+                3
+            };
         }
     }
     let m = |x: isize, y: isize| {
@@ -220,8 +228,9 @@ pub fn smooth(
     let reliability: Vec<f32> = (0..w * h)
         .map(|p| confidence.pixels()[p].max(0.02) * if edges[p] { opts.edge_weight } else { 1.0 })
         .collect();
-    let taps = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+    let taps = [0.25f32, 0.5, 0.25];
     let inv_sigma = 1.0 / opts.sigma_intensity.max(1e-3);
+    let similarity: Vec<f32> = (0..256).map(|d| (-(d as f32) * inv_sigma).exp()).collect();
     let mut src = disparity.pixels().to_vec();
     let mut dst = vec![0f32; w * h];
     for pass in 0..opts.passes {
@@ -229,15 +238,15 @@ pub fn smooth(
         dst.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
             for (x, o) in out.iter_mut().enumerate() {
                 let p = y * w + x;
-                let (dp, ip) = (src[p], guide.pixels()[p] as f32);
+                let (dp, ip) = (src[p], guide.pixels()[p]);
                 let (mut sum, mut weight) = (0f32, 0f32);
                 for (j, ty) in taps.iter().enumerate() {
-                    let qy = y as isize + (j as isize - 2) * spacing;
+                    let qy = y as isize + (j as isize - 1) * spacing;
                     if qy < 0 || qy >= h as isize {
                         continue;
                     }
                     for (i, tx) in taps.iter().enumerate() {
-                        let qx = x as isize + (i as isize - 2) * spacing;
+                        let qx = x as isize + (i as isize - 1) * spacing;
                         if qx < 0 || qx >= w as isize {
                             continue;
                         }
@@ -246,8 +255,8 @@ pub fn smooth(
                         if (dq - dp).abs() > opts.max_jump {
                             continue;
                         }
-                        let di = (guide.pixels()[q] as f32 - ip).abs();
-                        let wq = tx * ty * reliability[q] * (-di * inv_sigma).exp();
+                        let di = guide.pixels()[q].abs_diff(ip) as usize;
+                        let wq = tx * ty * reliability[q] * similarity[di];
                         sum += wq * dq;
                         weight += wq;
                     }

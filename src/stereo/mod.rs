@@ -26,6 +26,7 @@ pub mod dp;
 pub mod fill;
 pub mod metrics;
 pub mod options;
+pub mod preview;
 pub mod pyramid;
 pub mod rectify;
 pub mod refine;
@@ -263,7 +264,7 @@ pub(crate) fn match_grey(
                 l,
                 r,
                 o.local_refinement_radius as usize,
-                3,
+                2,
             )
         });
     }

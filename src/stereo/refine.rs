@@ -75,7 +75,7 @@ pub fn subpixel_offset(method: Subpixel, cm: f32, c0: f32, cp: f32) -> f32 {
 
 /// Picks each pixel's winner in `agg` (window `bases[p]..bases[p]+k`), refines and checks it.
 pub fn decide(agg: &Aggregated, bases: Option<&[u16]>, opts: &DecideOptions) -> Decision {
-    let (w, h, k) = (agg.width, agg.height, agg.k);
+    let (w, h) = (agg.width, agg.height);
     let mut disparity = vec![f32::NAN; w * h];
     let mut state = vec![PixelState::Valid; w * h];
     let mut confidence = vec![0f32; w * h];
@@ -86,82 +86,113 @@ pub fn decide(agg: &Aggregated, bases: Option<&[u16]>, opts: &DecideOptions) -> 
         .zip(confidence.par_chunks_mut(w))
         .enumerate()
         .for_each(|(y, ((disp, st), conf))| {
-            let s_row = &agg.s[y * w * k..(y + 1) * w * k];
-            let bases = bases.map(|b| &b[y * w..(y + 1) * w]);
-            // Integer winners of the left view, and of the right view from the same volume:
-            // the right pixel xr = x − d sees left pixel x at disparity d.
-            let mut best_left = vec![0u32; w];
-            let mut right_cost = vec![u16::MAX; w];
-            let mut right_best = vec![0u32; w];
-            for x in 0..w {
-                let s = &s_row[x * k..(x + 1) * k];
-                let base = bases.map_or(0, |b| b[x] as usize);
-                let (mut bi, mut bv) = (0usize, u16::MAX);
-                for (i, &v) in s.iter().enumerate() {
-                    if v < bv {
-                        bv = v;
-                        bi = i;
-                    }
-                    let d = base + i;
-                    if d <= x && v < right_cost[x - d] {
-                        right_cost[x - d] = v;
-                        right_best[x - d] = d as u32;
-                    }
-                }
-                best_left[x] = (base + bi) as u32;
-                let u = bv.saturating_sub(agg.min_sum[y * w + x]) as f32;
-                conf[x] = 1.0 / (1.0 + u / unit);
-                if opts.uniqueness > 0 {
-                    let limit = bv as u64 * 100;
-                    let unique = s.iter().enumerate().all(|(i, &v)| {
-                        i.abs_diff(bi) <= 1 || v as u64 * (100 - opts.uniqueness as u64) >= limit
-                    });
-                    if !unique {
-                        st[x] = PixelState::Mismatch;
-                        continue;
-                    }
-                }
-                let off = if bi > 0 && bi + 1 < k {
-                    subpixel_offset(opts.subpixel, s[bi - 1] as f32, bv as f32, s[bi + 1] as f32)
-                } else {
-                    0.0
-                };
-                disp[x] = (base + bi) as f32 + off;
-            }
-            if let Some(tol) = opts.lr_max_diff {
-                for x in 0..w {
-                    if st[x] != PixelState::Valid {
-                        continue;
-                    }
-                    let d = best_left[x] as usize;
-                    if d > x || right_best[x - d].abs_diff(d as u32) > tol {
-                        st[x] = PixelState::Mismatch;
-                    }
-                }
-                // Hirschmüller's rule: a failed pixel is occluded when no disparity at all would
-                // pass the check (its true match is hidden), and a mismatch otherwise.
-                let top = bases.map_or(k, |b| b.iter().map(|&v| v as usize + k).max().unwrap_or(k));
-                for x in 0..w {
-                    if st[x] == PixelState::Valid {
-                        continue;
-                    }
-                    let consistent =
-                        (0..top.min(x + 1)).any(|d| right_best[x - d].abs_diff(d as u32) <= tol);
-                    if !consistent {
-                        st[x] = PixelState::Occluded;
-                    }
-                }
-            }
-            for x in 0..w {
-                if st[x] != PixelState::Valid {
-                    disp[x] = f32::NAN;
-                }
-            }
+            let row = RowInput {
+                agg,
+                bases,
+                opts,
+                unit,
+                y,
+            };
+            decide_row_fast(&row, disp, st, conf);
         });
     Decision {
         disparity: Raster::from_vec(w, h, disparity),
         state,
         confidence: Raster::from_vec(w, h, confidence),
+    }
+}
+
+struct RowInput<'a> {
+    agg: &'a Aggregated,
+    bases: Option<&'a [u16]>,
+    opts: &'a DecideOptions,
+    unit: f32,
+    y: usize,
+}
+
+crate::avx2_variant!(fn decide_row_fast<'a, 'b>(input: &'b RowInput<'a>, disp: &'b mut [f32], st: &'b mut [PixelState], conf: &'b mut [f32]) => decide_row);
+
+/// Winner, sub-pixel, uniqueness and L/R check of one row.
+#[inline(always)]
+fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], conf: &mut [f32]) {
+    let RowInput {
+        agg,
+        bases,
+        opts,
+        unit,
+        y,
+    } = *input;
+    let (w, k) = (agg.width, agg.k);
+    let s_row = &agg.s[y * w * k..(y + 1) * w * k];
+    let bases = bases.map(|b| &b[y * w..(y + 1) * w]);
+    // Integer winners of the left view, and of the right view from the same volume:
+    // the right pixel xr = x − d sees left pixel x at disparity d.
+    let mut best_left = vec![0u32; w];
+    let mut right_cost = vec![u16::MAX; w];
+    let mut right_best = vec![0u32; w];
+    for x in 0..w {
+        let s = &s_row[x * k..(x + 1) * k];
+        let base = bases.map_or(0, |b| b[x] as usize);
+        let (mut bi, mut bv) = (0usize, u16::MAX);
+        for (i, &v) in s.iter().enumerate() {
+            if v < bv {
+                bv = v;
+                bi = i;
+            }
+            let d = base + i;
+            if d <= x && v < right_cost[x - d] {
+                right_cost[x - d] = v;
+                right_best[x - d] = d as u32;
+            }
+        }
+        best_left[x] = (base + bi) as u32;
+        let u = bv.saturating_sub(agg.min_sum[y * w + x]) as f32;
+        conf[x] = 1.0 / (1.0 + u / unit);
+        if opts.uniqueness > 0 {
+            let limit = bv as u64 * 100;
+            let unique = s.iter().enumerate().all(|(i, &v)| {
+                i.abs_diff(bi) <= 1 || v as u64 * (100 - opts.uniqueness as u64) >= limit
+            });
+            if !unique {
+                st[x] = PixelState::Mismatch;
+                continue;
+            }
+        }
+        let off = if bi > 0 && bi + 1 < k {
+            subpixel_offset(opts.subpixel, s[bi - 1] as f32, bv as f32, s[bi + 1] as f32)
+        } else {
+            0.0
+        };
+        disp[x] = (base + bi) as f32 + off;
+    }
+    if let Some(tol) = opts.lr_max_diff {
+        for x in 0..w {
+            if st[x] != PixelState::Valid {
+                continue;
+            }
+            let d = best_left[x] as usize;
+            if d > x || right_best[x - d].abs_diff(d as u32) > tol {
+                st[x] = PixelState::Mismatch;
+            }
+        }
+        // Hirschmüller's rule: a failed pixel is occluded when no disparity at all would
+        // pass the check (its true match is hidden), and a mismatch otherwise.
+        let top = bases.map_or(k, |b| b.iter().map(|&v| v as usize + k).max().unwrap_or(k));
+        for x in 0..w {
+            if st[x] == PixelState::Valid {
+                continue;
+            }
+            let consistent =
+                (0..top.min(x + 1)).any(|d| right_best[x - d].abs_diff(d as u32) <= tol);
+            if !consistent {
+                st[x] = PixelState::Occluded;
+            }
+        }
+    }
+    for x in 0..w {
+        if st[x] != PixelState::Valid {
+            disp[x] = f32::NAN;
+        }
     }
 }
 
@@ -251,6 +282,7 @@ pub fn refine_locally(
             0.5 * (b - a)
         })
         .collect();
+    let similarity: Vec<f32> = (0..256).map(|d| (-(d as f32) / 12.0).exp()).collect();
     let src = disparity.pixels().to_vec();
     disparity
         .pixels_mut()
@@ -263,7 +295,7 @@ pub fn refine_locally(
                 if d0.is_nan() {
                     continue;
                 }
-                let centre = *left.get(x, y) as f32;
+                let centre = *left.get(x, y);
                 // Window pixels: left value and similarity weight.
                 lv.clear();
                 for j in -r..=r {
@@ -276,9 +308,9 @@ pub fn refine_locally(
                         if xx < 0 || xx >= w as isize {
                             continue;
                         }
-                        let v = *left.get(xx as usize, yy as usize) as f32;
-                        let wt = (-(v - centre).abs() / 12.0).exp();
-                        lv.push((xx as f32, yy as usize, v, wt));
+                        let v = *left.get(xx as usize, yy as usize);
+                        let wt = similarity[v.abs_diff(centre) as usize];
+                        lv.push((xx as f32, yy as usize, v as f32, wt));
                     }
                 }
                 let mut d = d0;

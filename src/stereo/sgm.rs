@@ -16,6 +16,9 @@ use std::sync::Mutex;
 use super::cost::CostRows;
 use crate::image::Raster;
 
+/// Disparities handled together in the recurrence (16 × u16 = one AVX2 register).
+const LANES: usize = 16;
+
 /// Path costs beyond a window's ends: large, and saturating arithmetic keeps them there.
 const FAR: u16 = u16::MAX;
 
@@ -81,9 +84,8 @@ pub fn aggregate(
             .map(Mutex::new)
             .collect();
         let sweep = |forward: bool| {
-            super::simd::dispatch(|| {
-                Sweep::new(cost, guide, bases, k, paths == 8, penalties, forward).run(&rows)
-            })
+            let sweep = Sweep::new(cost, guide, bases, k, paths == 8, penalties, forward);
+            run_sweep(&sweep, &rows)
         };
         rayon::join(|| sweep(true), || sweep(false));
     }
@@ -102,6 +104,15 @@ pub fn working_bytes(w: usize, h: usize, k: usize) -> usize {
     let volume = w * h * k * 2 + w * h * 2;
     let per_sweep = w * k + 2 * 3 * w * (k + 2) * 2 + 2 * (k + 2) * 2 + 3 * 2 * w * 2;
     volume + 2 * per_sweep
+}
+
+type RowLocks<'r> = [Mutex<(&'r mut [u16], &'r mut [u16])>];
+
+crate::avx2_variant!(fn run_sweep<'a, 'b, 'r>(sweep: &'b Sweep<'a>, rows: &'b RowLocks<'r>) => sweep_body);
+
+#[inline(always)]
+fn sweep_body(sweep: &Sweep<'_>, rows: &RowLocks<'_>) {
+    sweep.run(rows)
 }
 
 struct Sweep<'a> {
@@ -153,7 +164,7 @@ impl<'a> Sweep<'a> {
     }
 
     #[inline(always)]
-    fn run(&self, rows: &[Mutex<(&mut [u16], &mut [u16])>]) {
+    fn run(&self, rows: &RowLocks<'_>) {
         let (w, h, k) = (self.cost.width(), self.cost.height(), self.k);
         let kp = k + 2;
         let mut costs = vec![0u8; w * k];
@@ -255,15 +266,17 @@ fn align<'b>(neighbour: &'b [u16], shift: isize, scratch: &'b mut [u16]) -> &'b 
     if shift == 0 {
         return neighbour;
     }
-    let kp = neighbour.len();
+    let kp = neighbour.len() as isize;
     // scratch[j] = neighbour[j + shift] for the inner values (1..kp-1), FAR elsewhere.
-    for (j, v) in scratch.iter_mut().enumerate() {
-        let src = j as isize + shift;
-        *v = if src >= 1 && src < kp as isize - 1 {
-            neighbour[src as usize]
-        } else {
-            FAR
-        };
+    let lo = (1 - shift).clamp(0, kp) as usize;
+    let hi = (kp - 1 - shift).clamp(0, kp) as usize;
+    if lo >= hi {
+        scratch.fill(FAR);
+    } else {
+        scratch[..lo].fill(FAR);
+        let start = (lo as isize + shift) as usize;
+        scratch[lo..hi].copy_from_slice(&neighbour[start..start + (hi - lo)]);
+        scratch[hi..].fill(FAR);
     }
     scratch
 }
@@ -283,13 +296,36 @@ fn step(
     let k = cost.len();
     let (prev, out, sum) = (&prev[..k + 2], &mut out[..k + 2], &mut sum[..k]);
     let jump = minprev.saturating_add(p2);
-    let mut best = u16::MAX;
-    for i in 0..k {
-        let same = prev[i + 1];
-        let lower = prev[i].saturating_add(p1);
-        let upper = prev[i + 2].saturating_add(p1);
-        let t = same.min(lower).min(upper).min(jump);
-        // t ≥ minprev (minprev is the minimum of prev), so the subtraction cannot wrap.
+    // Whole blocks of 16 lanes first (one AVX2 register each), then the rest one by one: a
+    // single loop would leave windows shorter than the vectoriser's unrolled width all scalar.
+    let blocks = k / LANES * LANES;
+    let mut best = [u16::MAX; LANES];
+    for b in (0..blocks).step_by(LANES) {
+        let c: &[u8; LANES] = cost[b..b + LANES].try_into().unwrap_or(&[0; LANES]);
+        let lower: &[u16; LANES] = prev[b..b + LANES].try_into().unwrap_or(&[0; LANES]);
+        let same: &[u16; LANES] = prev[b + 1..b + 1 + LANES].try_into().unwrap_or(&[0; LANES]);
+        let upper: &[u16; LANES] = prev[b + 2..b + 2 + LANES].try_into().unwrap_or(&[0; LANES]);
+        let mut v = [0u16; LANES];
+        for i in 0..LANES {
+            let t = same[i]
+                .min(lower[i].saturating_add(p1))
+                .min(upper[i].saturating_add(p1))
+                .min(jump);
+            // t ≥ minprev (minprev is the minimum of prev), so the subtraction cannot wrap.
+            v[i] = (c[i] as u16).saturating_add(t - minprev);
+            best[i] = best[i].min(v[i]);
+        }
+        out[b + 1..b + 1 + LANES].copy_from_slice(&v);
+        for (s, v) in sum[b..b + LANES].iter_mut().zip(v) {
+            *s = s.saturating_add(v);
+        }
+    }
+    let mut best = best.iter().copied().min().unwrap_or(u16::MAX);
+    for i in blocks..k {
+        let t = prev[i + 1]
+            .min(prev[i].saturating_add(p1))
+            .min(prev[i + 2].saturating_add(p1))
+            .min(jump);
         let v = (cost[i] as u16).saturating_add(t - minprev);
         out[i + 1] = v;
         sum[i] = sum[i].saturating_add(v);

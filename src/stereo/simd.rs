@@ -1,23 +1,41 @@
-//! Runs a hot loop compiled for AVX2 when the CPU has it (runtime detection), else for the
-//! baseline target. The loops are written so that LLVM vectorises them (u8/u16 lanes, saturating
-//! arithmetic, no branches inside); compiling the same body with AVX2 enabled doubles the lane
-//! count and gives unsigned 16-bit min/max instructions that SSE2 lacks.
+//! Hot loops compiled for AVX2 when the CPU has it (runtime detection), else for the baseline
+//! target. The loops are written so that LLVM vectorises them (u8/u16 lanes, saturating
+//! arithmetic, no branches inside); [`avx2_variant!`] compiles an `#[inline(always)]` body a
+//! second time inside a `#[target_feature(enable = "avx2")]` function, which doubles the lane
+//! count and gives the unsigned 16-bit min instructions that baseline SSE2 lacks.
 
-/// Calls `f`, compiled with AVX2 enabled when the CPU supports it.
-#[inline(always)]
-pub fn dispatch<R>(f: impl FnOnce() -> R) -> R {
+/// Whether the CPU supports AVX2 (cached by the standard library).
+#[inline]
+pub fn has_avx2() -> bool {
     #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
     {
-        if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { with_avx2(f) };
-        }
+        std::is_x86_feature_detected!("avx2")
     }
-    f()
+    #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
+    {
+        false
+    }
 }
 
-#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2")]
-unsafe fn with_avx2<R>(f: impl FnOnce() -> R) -> R {
-    f()
+/// `avx2_variant!(fn name(args) -> R => body_fn)` defines `name`, which calls the
+/// `#[inline(always)]` function `body_fn(args)` compiled with AVX2 when the CPU has it.
+#[macro_export]
+#[doc(hidden)]
+macro_rules! avx2_variant {
+    ($vis:vis fn $name:ident $(<$($lt:lifetime),+>)? ($($arg:ident : $ty:ty),* $(,)?) $(-> $ret:ty)? => $body:path) => {
+        $vis fn $name $(<$($lt),+>)? ($($arg: $ty),*) $(-> $ret)? {
+            #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+            {
+                #[target_feature(enable = "avx2")]
+                unsafe fn with_avx2 $(<$($lt),+>)? ($($arg: $ty),*) $(-> $ret)? {
+                    $body($($arg),*)
+                }
+                if $crate::stereo::simd::has_avx2() {
+                    // SAFETY: the CPU supports AVX2 (checked just above).
+                    return unsafe { with_avx2($($arg),*) };
+                }
+            }
+            $body($($arg),*)
+        }
+    };
 }

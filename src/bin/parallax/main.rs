@@ -5,6 +5,8 @@
 
 mod common;
 mod depth_input;
+mod depth;
+mod eval;
 mod info;
 mod mesh;
 mod surfaces;
@@ -27,6 +29,10 @@ enum Command {
     Mesh(mesh::Args),
     /// Support planes and the gravity "up" from depth, as JSON and a preview over the photo.
     Surfaces(surfaces::Args),
+    /// Disparity, depth and confidence of a rectified stereo pair.
+    Depth(depth::Args),
+    /// Benchmarks against ground truth and peers (`parallax eval stereo`).
+    Eval(eval::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -35,6 +41,8 @@ fn main() -> std::process::ExitCode {
         Command::Info(args) => info::run(args),
         Command::Mesh(args) => mesh::run(args),
         Command::Surfaces(args) => surfaces::run(args),
+        Command::Depth(args) => depth::run(args),
+        Command::Eval(args) => eval::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,0 +1,551 @@
+//! `parallax eval stereo`: scores the matcher (and, with `--peer opencv`, OpenCV's StereoSGBM in
+//! the same run) on Middlebury scene folders with Middlebury's rules, and writes an
+//! error-against-run-time table (Markdown) and plot (PNG).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use parallax::camera::StereoCalibration;
+use parallax::image::{Image, ImageLimits, PixelFormat, Raster};
+use parallax::stereo::metrics::{score, Scores};
+use parallax::stereo::{self, Aggregation, Preset, StereoOptions};
+use parallax::trace::{StageStatus, Trace};
+use parallax::{Error, Result};
+
+use crate::common::CommonArgs;
+
+/// Arguments of `parallax eval`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(subcommand)]
+    what: What,
+}
+
+#[derive(clap::Subcommand, Debug)]
+enum What {
+    /// Stereo matching against Middlebury ground truth.
+    Stereo(StereoArgs),
+}
+
+/// Arguments of `parallax eval stereo`.
+#[derive(clap::Args, Debug)]
+pub struct StereoArgs {
+    /// Folder of scene folders (im0.png, im1.png, calib.txt, disp0GT.pfm, mask0nocc.png).
+    #[arg(long, value_name = "DIR")]
+    data: PathBuf,
+    /// Preset to score, or `all` for every preset and every method (SAD+DP, SGM 4/8 paths,
+    /// with and without coarse-to-fine).
+    #[arg(long, default_value = "balanced", value_name = "P|all")]
+    preset: String,
+    /// Also run a peer on the same pairs: `opencv` (StereoSGBM 3-way and HH4, from a Python
+    /// virtual environment created on first use under ~/.cache/parallax).
+    #[arg(long, value_name = "PEER")]
+    peer: Option<String>,
+    /// Where the tables, plot and peer outputs go.
+    #[arg(long, default_value = "target/eval-stereo", value_name = "DIR")]
+    out_dir: PathBuf,
+    #[command(flatten)]
+    common: CommonArgs,
+}
+
+/// Dispatches `parallax eval …`.
+pub fn run(args: Args) -> Result<()> {
+    match args.what {
+        What::Stereo(a) => run_stereo(a),
+    }
+}
+
+struct Scene {
+    name: String,
+    dir: PathBuf,
+    left: Image,
+    right: Image,
+    calib: StereoCalibration,
+    truth: Raster<f32>,
+    mask: Raster<u8>,
+}
+
+/// One scored configuration: per-scene scores and matching times.
+struct Row {
+    name: String,
+    description: String,
+    scores: Vec<Scores>,
+    ms: Vec<f64>,
+    peer: bool,
+}
+
+fn load_scenes(dir: &Path) -> Result<Vec<Scene>> {
+    let limits = ImageLimits::default();
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join("im0.png").is_file() && p.join("disp0GT.pfm").is_file())
+        .collect();
+    dirs.sort();
+    if dirs.is_empty() {
+        return Err(Error::invalid(format!(
+            "{}: no scene folders (each needs im0.png, im1.png, calib.txt, disp0GT.pfm, mask0nocc.png)",
+            dir.display()
+        )));
+    }
+    dirs.into_iter()
+        .map(|d| {
+            let mask_img = Image::load(d.join("mask0nocc.png"), &limits)?;
+            let bpp = mask_img.format().bytes_per_pixel();
+            if !mask_img.format().is_srgb8() {
+                return Err(Error::format(format!(
+                    "{}: mask0nocc.png must be 8-bit",
+                    d.display()
+                )));
+            }
+            let mask = Raster::from_vec(
+                mask_img.width() as usize,
+                mask_img.height() as usize,
+                mask_img
+                    .as_bytes()
+                    .chunks_exact(bpp)
+                    .map(|p| p[0])
+                    .collect(),
+            );
+            let _ = PixelFormat::Gray8;
+            Ok(Scene {
+                name: d
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+                left: Image::load(d.join("im0.png"), &limits)?,
+                right: Image::load(d.join("im1.png"), &limits)?,
+                calib: StereoCalibration::load_middlebury(d.join("calib.txt"))?,
+                truth: Raster::read_pfm(d.join("disp0GT.pfm"), &limits)?,
+                mask,
+                dir: d,
+            })
+        })
+        .collect()
+}
+
+fn ndisp(scene: &Scene) -> u32 {
+    scene.calib.max_disparity.unwrap_or(64)
+}
+
+fn configurations(preset: &str) -> Result<Vec<(String, String, StereoOptions)>> {
+    let describe = |o: &StereoOptions| {
+        format!(
+            "{:?} {}×{}, {:?}{}",
+            o.cost,
+            2 * o.census_radius.0 + 1,
+            2 * o.census_radius.1 + 1,
+            o.aggregation,
+            if o.coarse_levels > 0 {
+                ", coarse-to-fine"
+            } else {
+                ""
+            }
+        )
+    };
+    if preset != "all" {
+        let p: Preset = preset.parse()?;
+        let o = StereoOptions::preset(p);
+        return Ok(vec![(p.to_string(), describe(&o), o)]);
+    }
+    let mut list: Vec<(String, String, StereoOptions)> = Preset::ALL
+        .iter()
+        .map(|&p| {
+            let o = StereoOptions::preset(p);
+            (p.to_string(), describe(&o), o)
+        })
+        .collect();
+    let b = StereoOptions::default();
+    let thesis = StereoOptions::thesis();
+    list.push((
+        "sad+dp (thesis)".into(),
+        format!(
+            "SAD {}×{} blocks, scanline DP",
+            2 * thesis.sad_radius + 1,
+            2 * thesis.sad_radius + 1
+        ),
+        thesis,
+    ));
+    for (name, o) in [
+        (
+            "census+sgm4",
+            StereoOptions {
+                aggregation: Aggregation::Sgm4,
+                coarse_levels: 0,
+                ..b.clone()
+            },
+        ),
+        (
+            "census+sgm4+c2f",
+            StereoOptions {
+                aggregation: Aggregation::Sgm4,
+                ..b.clone()
+            },
+        ),
+    ] {
+        list.push((name.to_string(), describe(&o), o));
+    }
+    Ok(list)
+}
+
+fn run_stereo(args: StereoArgs) -> Result<()> {
+    let mut trace = Trace::new();
+    let scenes = trace.time("load", "scene folders", |_| load_scenes(&args.data))?;
+    std::fs::create_dir_all(&args.out_dir).map_err(|e| Error::io(&args.out_dir, e))?;
+    let configs = configurations(&args.preset)?;
+    let mut rows = Vec::new();
+
+    // Warm up (page faults, thread pool) so the first timed pair is not penalised.
+    if let Some(s) = scenes.first() {
+        let o = StereoOptions {
+            max_disparity: ndisp(s) - 1,
+            ..StereoOptions::default()
+        };
+        stereo::match_pair(&s.left.view(), &s.right.view(), &o)?;
+    }
+    let bar = args
+        .common
+        .progress((configs.len() * scenes.len()) as u64, "matching");
+    for (name, description, base) in &configs {
+        let mut row = Row {
+            name: name.clone(),
+            description: description.clone(),
+            scores: vec![],
+            ms: vec![],
+            peer: false,
+        };
+        for s in &scenes {
+            let o = StereoOptions {
+                max_disparity: ndisp(s).saturating_sub(1).max(1),
+                ..base.clone()
+            };
+            let d = stereo::match_pair(&s.left.view(), &s.right.view(), &o)?;
+            row.scores
+                .push(score(&d.disparity, &s.truth, &s.mask, ndisp(s) as f32)?);
+            row.ms.push(d.stats.total_ms);
+            trace.record(
+                format!("stereo[{name}/{}]", s.name),
+                StageStatus::Computed,
+                d.stats.total_ms,
+                "eval",
+            );
+            bar.inc(1);
+        }
+        rows.push(row);
+    }
+    bar.finish_and_clear();
+
+    match args.peer.as_deref() {
+        None => {}
+        Some("opencv") => {
+            let peer_rows = trace.time("peer.opencv", "--peer opencv", |_| {
+                run_opencv(&scenes, &args.out_dir, args.common.quiet)
+            })?;
+            rows.extend(peer_rows);
+        }
+        Some(other) => {
+            return Err(Error::invalid(format!(
+                "unknown peer {other:?} (expected opencv)"
+            )))
+        }
+    }
+
+    let report = render_report(&rows, &scenes);
+    print!("{}", report.summary);
+    let md = args.out_dir.join("stereo_eval.md");
+    std::fs::write(
+        &md,
+        format!(
+            "{}\n{}\n{}",
+            report.summary, report.per_scene, report.legend
+        ),
+    )
+    .map_err(|e| Error::io(&md, e))?;
+    let png = args.out_dir.join("stereo_error_vs_time.png");
+    plot(&rows, &scenes)?.save_png(&png)?;
+    let table = args.out_dir.join("stereo_error_vs_time.md");
+    std::fs::write(&table, &report.error_vs_time).map_err(|e| Error::io(&table, e))?;
+    if !args.common.quiet {
+        eprintln!(
+            "parallax: wrote {}, {} and {}",
+            md.display(),
+            table.display(),
+            png.display()
+        );
+    }
+    args.common.finish(&trace)
+}
+
+/// Creates (once) a virtual environment with OpenCV and runs `scripts/opencv_sgbm.py` in it.
+fn run_opencv(scenes: &[Scene], out_dir: &Path, quiet: bool) -> Result<Vec<Row>> {
+    let cache = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
+        .unwrap_or_else(|| PathBuf::from("target"))
+        .join("parallax");
+    let venv = cache.join("opencv-venv");
+    let python = venv.join("bin").join("python");
+    let fail =
+        |what: &str, detail: String| Error::NotAvailable(format!("OpenCV peer: {what}: {detail}"));
+    let run = |cmd: &mut Command, what: &str| -> Result<std::process::Output> {
+        let out = cmd.output().map_err(|e| fail(what, e.to_string()))?;
+        if !out.status.success() {
+            return Err(fail(
+                what,
+                String::from_utf8_lossy(&out.stderr).trim().to_string(),
+            ));
+        }
+        Ok(out)
+    };
+    if !python.is_file() {
+        if !quiet {
+            eprintln!(
+                "parallax: creating {} with opencv-python-headless (first use only)",
+                venv.display()
+            );
+        }
+        std::fs::create_dir_all(&cache).map_err(|e| Error::io(&cache, e))?;
+        run(
+            Command::new("python3").args(["-m", "venv"]).arg(&venv),
+            "python3 -m venv",
+        )?;
+        run(
+            Command::new(&python).args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "opencv-python-headless",
+                "numpy",
+            ]),
+            "pip install opencv-python-headless numpy",
+        )?;
+    }
+    let script = cache.join("opencv_sgbm.py");
+    std::fs::write(&script, include_str!("../../../scripts/opencv_sgbm.py"))
+        .map_err(|e| Error::io(&script, e))?;
+    let peer_dir = out_dir.join("opencv");
+    let out = run(
+        Command::new(&python)
+            .arg(&script)
+            .arg(&peer_dir)
+            .args(scenes.iter().map(|s| s.dir.as_os_str())),
+        "running opencv_sgbm.py",
+    )?;
+    let mut rows: Vec<Row> = Vec::new();
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let v: serde_json::Value = serde_json::from_str(line)
+            .map_err(|e| fail("bad output line", format!("{line}: {e}")))?;
+        let (Some(scene), Some(mode), Some(ms), Some(pfm)) = (
+            v["scene"].as_str(),
+            v["mode"].as_str(),
+            v["ms"].as_f64(),
+            v["pfm"].as_str(),
+        ) else {
+            return Err(fail("bad output line", line.to_string()));
+        };
+        let s = scenes
+            .iter()
+            .find(|s| s.name == scene)
+            .ok_or_else(|| fail("unknown scene", scene.to_string()))?;
+        let disparity = Raster::read_pfm(pfm, &ImageLimits::default())?;
+        let name = format!("opencv {mode}");
+        let idx = match rows.iter().position(|r| r.name == name) {
+            Some(i) => i,
+            None => {
+                rows.push(Row {
+                    name: name.clone(),
+                    description: format!("StereoSGBM MODE_{mode}, README parameters"),
+                    scores: vec![],
+                    ms: vec![],
+                    peer: true,
+                });
+                rows.len() - 1
+            }
+        };
+        rows[idx]
+            .scores
+            .push(score(&disparity, &s.truth, &s.mask, ndisp(s) as f32)?);
+        rows[idx].ms.push(ms);
+    }
+    if rows.iter().any(|r| r.scores.len() != scenes.len()) || rows.is_empty() {
+        return Err(fail("incomplete output", format!("{} rows", rows.len())));
+    }
+    Ok(rows)
+}
+
+struct Report {
+    summary: String,
+    per_scene: String,
+    error_vs_time: String,
+    legend: String,
+}
+
+fn mean(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        s / n as f64
+    }
+}
+
+fn render_report(rows: &[Row], scenes: &[Scene]) -> Report {
+    let mp: f64 = scenes
+        .iter()
+        .map(|s| (s.left.width() * s.left.height()) as f64 / 1e6)
+        .sum();
+    let reference = rows.iter().find(|r| r.name == "opencv SGBM_3WAY");
+    let ref_time: Option<f64> = reference.map(|r| r.ms.iter().sum());
+    let ref_bad: Option<f64> = reference.map(|r| mean(r.scores.iter().map(|s| s.nonocc.bad[0])));
+    let mut summary = format!(
+        "Stereo on {} scenes ({:.2} MP in all), mean over scenes, dense scoring (holes are bad)\n\n",
+        scenes.len(),
+        mp
+    );
+    summary.push_str("| method | nonocc bad 0.5 | bad 1.0 | bad 2.0 | all bad 0.5 | holes (nonocc) | avgerr (nonocc) | time, all pairs | ms/MP | time ÷ SGBM_3WAY | bad 0.5 ÷ SGBM_3WAY |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    let mut ev = String::from("| method | what | nonocc bad 0.5 (%) | all bad 0.5 (%) | time per pair (ms) | time, all pairs (s) |\n|---|---|---|---|---|---|\n");
+    for r in rows {
+        let m = |f: &dyn Fn(&Scores) -> f64| mean(r.scores.iter().map(f));
+        let total: f64 = r.ms.iter().sum();
+        let bad05 = m(&|s| s.nonocc.bad[0]);
+        let ratio =
+            |a: Option<f64>, b: f64| a.map_or("–".to_string(), |a| format!("{:.2}", b / a));
+        let _ = writeln!(
+            summary,
+            "| {} | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.2} | {:.3} s | {:.0} | {} | {} |",
+            r.name,
+            bad05,
+            m(&|s| s.nonocc.bad[1]),
+            m(&|s| s.nonocc.bad[2]),
+            m(&|s| s.all.bad[0]),
+            m(&|s| s.nonocc.invalid),
+            m(&|s| s.nonocc.avgerr),
+            total / 1e3,
+            total / mp,
+            ratio(ref_time, total),
+            ratio(ref_bad, bad05),
+        );
+        let _ = writeln!(
+            ev,
+            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.3} |",
+            r.name,
+            r.description,
+            bad05,
+            m(&|s| s.all.bad[0]),
+            total / r.ms.len().max(1) as f64,
+            total / 1e3
+        );
+    }
+    let mut per_scene =
+        String::from("\n## Per scene: nonocc bad 0.5 % / matching ms\n\n| method |");
+    for s in scenes {
+        let _ = write!(per_scene, " {} |", s.name);
+    }
+    per_scene.push_str("\n|---|");
+    per_scene.push_str(&"---|".repeat(scenes.len()));
+    per_scene.push('\n');
+    for r in rows {
+        let _ = write!(per_scene, "| {} |", r.name);
+        for (s, ms) in r.scores.iter().zip(&r.ms) {
+            let _ = write!(per_scene, " {:.1} / {:.0} |", s.nonocc.bad[0], ms);
+        }
+        per_scene.push('\n');
+    }
+    let mut legend = String::from("\n## Plot colours (stereo_error_vs_time.png: x = time per pair, log scale 1 ms – 10 s; y = nonocc bad 0.5 %, 0–100)\n\n");
+    for (i, r) in rows.iter().enumerate() {
+        let c = colour(i, rows.len(), r.peer);
+        let _ = writeln!(
+            legend,
+            "- {}: rgb({}, {}, {}){}",
+            r.name,
+            c[0],
+            c[1],
+            c[2],
+            if r.peer {
+                " (square outline: peer)"
+            } else {
+                ""
+            }
+        );
+    }
+    ev.push_str(&legend);
+    Report {
+        summary,
+        per_scene,
+        error_vs_time: ev,
+        legend,
+    }
+}
+
+fn colour(i: usize, n: usize, peer: bool) -> [u8; 3] {
+    if peer {
+        return if i.is_multiple_of(2) {
+            [0, 0, 0]
+        } else {
+            [120, 120, 120]
+        };
+    }
+    stereo::preview::jet(if n <= 1 {
+        0.0
+    } else {
+        i as f32 / (n - 1) as f32
+    })
+}
+
+/// Error against time: x = time per pair on a log scale (1 ms – 10 s), y = nonocc bad 0.5 %.
+fn plot(rows: &[Row], _scenes: &[Scene]) -> Result<Image> {
+    let (w, h) = (640usize, 480usize);
+    let (x0, x1, y0, y1) = (60usize, 620usize, 440usize, 20usize);
+    let mut px = vec![255u8; w * h * 3];
+    let put = |x: usize, y: usize, c: [u8; 3], px: &mut Vec<u8>| {
+        if x < w && y < h {
+            px[(y * w + x) * 3..(y * w + x) * 3 + 3].copy_from_slice(&c);
+        }
+    };
+    let grid = [225, 225, 225];
+    // Grid: every 10 % and every decade (1 ms, 10 ms, 100 ms, 1 s, 10 s).
+    for k in 0..=10 {
+        let y = y0 - (y0 - y1) * k / 10;
+        for x in x0..=x1 {
+            put(x, y, grid, &mut px);
+        }
+    }
+    for k in 0..=4 {
+        let x = x0 + (x1 - x0) * k / 4;
+        for y in y1..=y0 {
+            put(x, y, grid, &mut px);
+        }
+    }
+    for x in x0..=x1 {
+        put(x, y0, [0, 0, 0], &mut px);
+    }
+    for y in y1..=y0 {
+        put(x0, y, [0, 0, 0], &mut px);
+    }
+    let n = rows.len();
+    for (i, r) in rows.iter().enumerate() {
+        let per_pair = r.ms.iter().sum::<f64>() / r.ms.len().max(1) as f64;
+        let bad = mean(r.scores.iter().map(|s| s.nonocc.bad[0]));
+        let t = ((per_pair.max(1.0).log10()) / 4.0).clamp(0.0, 1.0);
+        let x = x0 + ((x1 - x0) as f64 * t) as usize;
+        let y = y0 - ((y0 - y1) as f64 * (bad / 100.0).clamp(0.0, 1.0)) as usize;
+        let c = colour(i, n, r.peer);
+        for dy in -5i32..=5 {
+            for dx in -5i32..=5 {
+                let edge = dx.abs() == 5 || dy.abs() == 5;
+                if r.peer && !edge && dx.abs() < 4 && dy.abs() < 4 {
+                    continue;
+                }
+                put(
+                    (x as i32 + dx) as usize,
+                    (y as i32 + dy) as usize,
+                    c,
+                    &mut px,
+                );
+            }
+        }
+    }
+    Image::from_bytes(w as u32, h as u32, PixelFormat::Rgb8, px)
+}
