@@ -149,6 +149,18 @@ impl Scene {
         self.mesh_options.value.unwrap_or_default()
     }
 
+    /// Sets how support surfaces are searched for (the defaults until then).
+    ///
+    /// # Errors
+    /// `InvalidArgument` naming the bad field ([`SurfaceOptions::validate`]); the scene is
+    /// unchanged.
+    pub fn set_surface_options(&mut self, options: SurfaceOptions) -> Result<()> {
+        options.validate()?;
+        self.surface_options.value = Some(options);
+        self.surface_options.version = self.bump();
+        Ok(())
+    }
+
     /// The intrinsics (default clip range) of a `width × height` depth map: the host's camera,
     /// else the calibration's, else the assumed field of view.
     fn intrinsics(&self, width: u32, height: u32, trace: &mut Trace) -> Result<Camera> {
@@ -370,12 +382,14 @@ impl Scene {
                 self.depth.generation
             },
             self.intrinsics_version(),
+            self.surface_options.version,
         ];
+        let options = self.surface_options.value.unwrap_or_default();
         let empty = SceneMesh::default();
         let mesh = grid.as_deref().unwrap_or(&empty);
         self.surfaces
             .get_or_compute("surfaces", &versions, trace, |_| {
-                detect_surfaces(mesh, &camera, &SurfaceOptions::default())
+                detect_surfaces(mesh, &camera, &options)
             })
     }
 
