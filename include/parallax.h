@@ -133,6 +133,53 @@ typedef uint32_t plx_stereo_method;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// Encodings of `plx_scene_depth_buffer`. `N`, `F` are the clip planes, `z` the depth in metres.
+enum plx_depth_encoding
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // Depth along the optical axis in metres (Unity/HoloLens linear eye depth); +inf = none.
+  PLX_DEPTH_ENCODING_LINEAR_METERS = 0,
+  // OpenGL window depth in [0, 1] (default glDepthRange), thesis eq. 3.8:
+  // `(F+N)/(2(F−N)) − F·N/((F−N)·z) + 1/2`; 1 = none.
+  PLX_DEPTH_ENCODING_OPENGL_WINDOW = 1,
+  // WebGPU / Direct3D / Vulkan depth in [0, 1]: `F·(z−N)/((F−N)·z)`; 1 = none.
+  PLX_DEPTH_ENCODING_WEBGPU_ZERO_TO_ONE = 2,
+  // Reversed-Z in [0, 1]: `N·(F−z)/((F−N)·z)`, 1 at near; 0 = none.
+  PLX_DEPTH_ENCODING_REVERSED_Z = 3,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum plx_depth_encoding plx_depth_encoding;
+#else
+typedef uint32_t plx_depth_encoding;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+// Orientation of a surface relative to the estimated up (`plx_surface::kind`).
+enum plx_surface_kind
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // Faces up within 10° (floor, table top): objects can stand on it.
+  PLX_SURFACE_KIND_HORIZONTAL = 0,
+  // Faces down within 10° (ceiling).
+  PLX_SURFACE_KIND_OVERHEAD = 1,
+  // Within 10° of vertical (wall).
+  PLX_SURFACE_KIND_VERTICAL = 2,
+  // Anything else.
+  PLX_SURFACE_KIND_SLANTED = 3,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum plx_surface_kind plx_surface_kind;
+#else
+typedef uint32_t plx_surface_kind;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
 // Opaque. Thread-safe: may be shared by scenes on several threads. Freed by `plx_context_free`;
 // scenes made from it keep what they need alive, so it may be freed before them.
 typedef struct plx_context plx_context;
@@ -152,6 +199,102 @@ typedef struct plx_context_options {
   // NULL = the `WGPU_ADAPTER_NAME` environment variable, else the best adapter.
   const char *adapter_name;
 } plx_context_options;
+
+// Pinhole intrinsics of the left camera, pixels (x right, y down from the top-left corner;
+// the centre of pixel (x, y) is (x + 0.5, y + 0.5)).
+typedef struct plx_camera {
+  // Horizontal focal length, pixels (> 0).
+  float fx;
+  // Vertical focal length, pixels (> 0).
+  float fy;
+  // Principal point x, pixels from the left edge.
+  float cx;
+  // Principal point y, pixels from the top edge.
+  float cy;
+} plx_camera;
+
+// A borrowed grid of floats in library memory: `height` rows of `stride` bytes, each holding
+// `width` floats. Valid until the next call that changes the scene it came from.
+typedef struct plx_float_view {
+  // First value of the top row.
+  const float *data;
+  // Values per row.
+  uint32_t width;
+  // Rows.
+  uint32_t height;
+  // Bytes from one row to the next.
+  size_t stride;
+} plx_float_view;
+
+// How depth becomes the scene mesh. Initialise with `plx_mesh_options_init`, then change fields.
+typedef struct plx_mesh_options {
+  // `sizeof(plx_mesh_options)` as the caller compiled it.
+  size_t size;
+  // Grid step in pixels: 1 = a vertex per pixel (default).
+  uint32_t step;
+  // Most oblique view of a surface still meshed as continuous, degrees in (0, 90); steeper
+  // depth jumps cut the mesh (default 85).
+  float max_grazing_angle_deg;
+  // Relative depth noise tolerated between neighbours, ≥ 0 (default 0.01).
+  float depth_noise;
+  // Simplify to at most this many triangles (flat regions coarse, edges fine); 0 = keep the
+  // full grid (default).
+  uint32_t max_triangles;
+} plx_mesh_options;
+
+// A borrowed triangle mesh in library memory, in the camera (= world) frame of DESIGN.md
+// (metres; +X right, +Y up, the camera looks along −Z). Triangles are counter-clockwise seen
+// from the camera. Valid until the next call that changes the scene it came from.
+typedef struct plx_mesh_view {
+  // `3 · vertex_count` floats: x, y, z per vertex, metres.
+  const float *positions;
+  // `3 · vertex_count` floats: unit smooth normals.
+  const float *normals;
+  // `4 · vertex_count` floats: unit tangents along the photo's u, bitangent sign in w (glTF).
+  const float *tangents;
+  // `2 · vertex_count` floats: texture coordinates into the photo, (0, 0) top-left, (1, 1)
+  // bottom-right.
+  const float *uvs;
+  // Number of vertices.
+  size_t vertex_count;
+  // `index_count` vertex indices, three per triangle, each `< vertex_count`.
+  const uint32_t *indices;
+  // Number of indices (3 × triangles).
+  size_t index_count;
+} plx_mesh_view;
+
+// A planar surface of the scene, in the camera (= world) frame, metres.
+typedef struct plx_surface {
+  // Unit normal, on the side facing the camera.
+  float normal[3];
+  // Mean of the points on the surface.
+  float centroid[3];
+  // Plane offset: points p on the plane satisfy dot(normal, p) = offset.
+  float offset;
+  // Number of mesh vertices on the surface.
+  uint64_t inliers;
+  // Flatness: root-mean-square distance of those points from the plane, metres.
+  float rms_m;
+  // Area of the surface's extent (convex hull on the plane), square metres.
+  float area_m2;
+  // A `plx_surface_kind` value.
+  uint32_t kind;
+} plx_surface;
+
+// What `plx_scene_pick` found.
+typedef struct plx_hit {
+  // 1 when the pixel's ray hit the scene mesh; 0 when it did not (a hole in the depth, or a
+  // pixel outside the image), and then the other fields are 0.
+  uint32_t hit;
+  // The 3D point, camera (= world) frame, metres.
+  float point[3];
+  // Unit smooth surface normal there, facing the camera.
+  float normal[3];
+  // Distance from the camera centre to the point, metres.
+  float distance;
+  // Index of the triangle hit (into the indices of `plx_scene_mesh`, divided by 3).
+  uint32_t triangle;
+} plx_hit;
 
 // An image in caller memory: `height` rows of `stride` bytes starting at `data`; each row holds
 // `width` pixels of `format` (a `plx_pixel_format` value). The last row may end right after
@@ -202,19 +345,6 @@ typedef struct plx_stereo_options {
   int32_t coarse_levels;
 } plx_stereo_options;
 
-// A borrowed grid of floats in library memory: `height` rows of `stride` bytes, each holding
-// `width` floats. Valid until the next call that changes the scene it came from.
-typedef struct plx_float_view {
-  // First value of the top row.
-  const float *data;
-  // Values per row.
-  uint32_t width;
-  // Rows.
-  uint32_t height;
-  // Bytes from one row to the next.
-  size_t stride;
-} plx_float_view;
-
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -240,6 +370,157 @@ enum plx_status plx_context_new(const struct plx_context_options *options,
 // # Safety
 // `context` is NULL or a live context not used by another thread during the call.
 void plx_context_free(struct plx_context *context);
+
+// Gives the scene the host's own depth of the photo (ARCore, a depth sensor, …) so that stereo
+// is skipped (the report shows `stereo` skipped, "host depth given"). `depth` holds `height` rows
+// of `width` floats, `stride_bytes` apart: metres along the optical axis, NaN, ±inf and ≤ 0 = no
+// depth. `confidence` (nullable; same size, its own stride) in [0, 1], NaN read as 0: pixels of
+// confidence 0 count as no depth. `camera` (nullable) gives the intrinsics of the depth; NULL =
+// the calibration's, else a 60° horizontal field of view. Both maps are copied.
+//
+// A map without any valid depth is accepted: `plx_scene_mesh` then fails and
+// `plx_scene_surfaces` returns none. Errors: `NULL_ARGUMENT`; `INVALID_ARGUMENT` (zero size,
+// stride shorter than a row, confidence outside [0, 1], bad camera); `SIZE_MISMATCH` (the stereo
+// pair has another size); `TOO_LARGE` (over the context's pixel cap). On error the scene is
+// unchanged.
+//
+// # Safety
+// `scene` is a live scene; `depth` (and `confidence` when not NULL) point to `height` readable
+// rows of their stride; `camera` is NULL or valid.
+enum plx_status plx_scene_set_depth(struct plx_scene *scene,
+                                    const float *depth,
+                                    uint32_t width,
+                                    uint32_t height,
+                                    size_t stride_bytes,
+                                    const float *confidence,
+                                    size_t confidence_stride_bytes,
+                                    const struct plx_camera *camera);
+
+// Forgets the host's depth: depth comes from the stereo pair again.
+//
+// # Safety
+// `scene` is a live scene.
+enum plx_status plx_scene_clear_depth(struct plx_scene *scene);
+
+// Sets the camera's clip range in metres (used by depth buffers and rendering); `0, 0` = back
+// to the automatic range (half the nearest depth to twice the farthest). Errors:
+// `INVALID_ARGUMENT` unless both are finite and `0 < near < far`. On error the scene is unchanged.
+//
+// # Safety
+// `scene` is a live scene.
+enum plx_status plx_scene_set_clip(struct plx_scene *scene, float near, float far);
+
+// The left camera: intrinsics into `*out`, clip range in metres into `*near`, `*far` (set by
+// `plx_scene_set_clip`, else derived from the depth). Needs depth (host or stereo, computed if
+// needed). Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without depth; `INVALID_ARGUMENT` when the
+// automatic clip range is asked of a depth map with no valid depth.
+//
+// # Safety
+// `scene` is a live scene; the outputs are writable.
+enum plx_status plx_scene_camera(struct plx_scene *scene,
+                                 struct plx_camera *out,
+                                 float *near,
+                                 float *far);
+
+// Depth of the left view encoded for a host depth buffer (`encoding`: a `plx_depth_encoding`),
+// with clip planes `near`, `far` in metres, or the camera's (`plx_scene_camera`) when both are 0.
+// Pixels without depth hold the encoding's empty value (+inf, 1, 1, 0). The view is valid until
+// the scene changes. Errors: `NULL_ARGUMENT`; `INVALID_ARGUMENT` (unknown encoding, not
+// `0 < near < far`, automatic clip range of a map with no valid depth); `NOT_AVAILABLE` without
+// depth; as `plx_scene_depth` when stereo runs.
+//
+// # Safety
+// `scene` is a live scene; `out` is writable.
+enum plx_status plx_scene_depth_buffer(struct plx_scene *scene,
+                                       uint32_t encoding,
+                                       float near,
+                                       float far,
+                                       struct plx_float_view *out);
+
+// Fills `options` with the defaults and its `size`.
+//
+// # Safety
+// `options` is NULL or points to a writable `plx_mesh_options`.
+enum plx_status plx_mesh_options_init(struct plx_mesh_options *options);
+
+// Sets the mesh options (NULL = back to the defaults). Errors: `INVALID_ARGUMENT` naming a field
+// out of range. On error the scene is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `options` is NULL or valid for `options->size` bytes.
+enum plx_status plx_scene_set_mesh_options(struct plx_scene *scene,
+                                           const struct plx_mesh_options *options);
+
+// The scene mesh: the depth grid cut at depth discontinuities, holes where depth is missing,
+// simplified to `max_triangles` when set (`plx_scene_set_mesh_options`). Computed from depth
+// (host or stereo) unless nothing it depends on changed. Never holds a NaN or an index out of
+// range. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without depth; `INVALID_ARGUMENT` when no
+// triangle can be formed (no valid depth, an image under 2×2 samples), the message says which.
+//
+// # Safety
+// `scene` is a live scene; `out` is writable.
+enum plx_status plx_scene_mesh(struct plx_scene *scene, struct plx_mesh_view *out);
+
+// The support surfaces (planes found in the scene mesh), largest first: `*count` of them at
+// `*out` (NULL when there are none), valid until the scene changes. When depth gives no mesh
+// (no valid depth, too small an image) there are none and the report warns why. Errors:
+// `NULL_ARGUMENT`; `NOT_AVAILABLE` without depth; as `plx_scene_depth` when stereo runs.
+//
+// # Safety
+// `scene` is a live scene; `count` and `out` are writable.
+enum plx_status plx_scene_surfaces(struct plx_scene *scene,
+                                   size_t *count,
+                                   const struct plx_surface **out);
+
+// The gravity "up" (unit vector, camera frame) into `out[0..3]`: from the largest near-horizontal
+// surfaces, else the camera's +Y. Errors as `plx_scene_surfaces`.
+//
+// # Safety
+// `scene` is a live scene; `out` points to 3 writable floats.
+enum plx_status plx_scene_up(struct plx_scene *scene, float *out);
+
+// Picks the scene surface seen at image position (`x`, `y`) in continuous pixels (the centre of
+// pixel (i, j) is (i + 0.5, j + 0.5)). A miss is not an error: `out->hit` is 0. Errors:
+// `NULL_ARGUMENT`; `INVALID_ARGUMENT` for a non-finite position or when depth gives no mesh;
+// `NOT_AVAILABLE` without depth.
+//
+// # Safety
+// `scene` is a live scene; `out` is writable.
+enum plx_status plx_scene_pick(struct plx_scene *scene, float x, float y, struct plx_hit *out);
+
+// Stands an object on the surface seen at image position (`x`, `y`) (continuous pixels) and
+// writes its model → world transform to `out_matrix` as 16 floats, **column-major** (OpenGL,
+// glTF, Unity's `Matrix4x4` element order m00, m10, m20, m30, m01, …; translation in elements
+// 12–14). The model is taken as glTF has it: +Y up, +Z its front, base centred at the origin,
+// largest side 1 unit; it is scaled to `size_m` metres, stood upright (gravity up on near-
+// horizontal surfaces, the surface normal elsewhere), its base on the surface (snapped to the
+// detected plane there), and turned by `yaw_deg` degrees about its up axis (0 = facing the
+// camera). Errors: `NULL_ARGUMENT`; `INVALID_ARGUMENT` for a size not finite and > 0, a
+// non-finite yaw or position, no surface at that pixel, or depth that gives no mesh;
+// `NOT_AVAILABLE` without depth.
+//
+// # Safety
+// `scene` is a live scene; `out_matrix` points to 16 writable floats.
+enum plx_status plx_scene_place(struct plx_scene *scene,
+                                float x,
+                                float y,
+                                float size_m,
+                                float yaw_deg,
+                                float *out_matrix);
+
+// `plx_scene_place` for the host's own ray (a controller, a gaze): `origin[3]` and `direction[3]`
+// (any length > 0) in the camera (= world) frame, metres; with `yaw_deg` 0 the object faces back
+// along the ray. Errors as `plx_scene_place`, and `INVALID_ARGUMENT` when the ray hits nothing.
+//
+// # Safety
+// `scene` is a live scene; `origin` and `direction` point to 3 readable floats each,
+// `out_matrix` to 16 writable floats.
+enum plx_status plx_scene_place_on_ray(struct plx_scene *scene,
+                                       const float *origin,
+                                       const float *direction,
+                                       float size_m,
+                                       float yaw_deg,
+                                       float *out_matrix);
 
 // Creates an empty scene in `context`.
 //

@@ -9,7 +9,7 @@
 
 use std::sync::Arc;
 
-use crate::camera::StereoCalibration;
+use crate::camera::{Camera, StereoCalibration};
 use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::image::{Image, ImageView, Raster};
@@ -61,6 +61,18 @@ impl<T> Product<T> {
         trace: &mut Trace,
         compute: impl FnOnce(&mut Trace) -> Result<T>,
     ) -> Result<Arc<T>> {
+        self.get_or_share(name, versions, trace, |trace| compute(trace).map(Arc::new))
+    }
+
+    /// [`Product::get_or_compute`] for a computation that returns a shared value (one that
+    /// another product or an input already holds), so it is not copied.
+    fn get_or_share(
+        &mut self,
+        name: &str,
+        versions: &[u64],
+        trace: &mut Trace,
+        compute: impl FnOnce(&mut Trace) -> Result<Arc<T>>,
+    ) -> Result<Arc<T>> {
         if let Some(value) = &self.value {
             if self.computed_from == versions {
                 trace.record(name, StageStatus::Reused, 0.0, "inputs unchanged");
@@ -72,7 +84,7 @@ impl<T> Product<T> {
         } else {
             "an input changed"
         };
-        let value = Arc::new(trace.time(name, why, compute)?);
+        let value = trace.time(name, why, compute)?;
         self.value = Some(Arc::clone(&value));
         self.computed_from = versions.to_vec();
         self.generation += 1;
@@ -107,6 +119,10 @@ struct StereoSettings {
     max_disparity: Option<u32>,
 }
 
+mod reconstruction;
+
+pub use reconstruction::HostDepth;
+
 /// A photo's reconstruction and everything inserted into it.
 ///
 /// Not thread-safe for concurrent calls (`Send`, not `Sync`): use one scene from one thread at a
@@ -118,9 +134,19 @@ pub struct Scene {
     stereo_pair: Input<StereoPair>,
     calibration: Input<StereoCalibration>,
     stereo_options: Input<StereoSettings>,
+    host_depth: Input<HostDepth>,
+    clip: Input<(f32, f32)>,
+    mesh_options: Input<crate::mesh::MeshOptions>,
+    surface_options: Input<crate::mesh::SurfaceOptions>,
     loaded_pair: Product<LoadedPair>,
     disparity: Product<Disparity>,
     depth: Product<Raster<f32>>,
+    camera: Product<Camera>,
+    depth_buffer: Product<Raster<f32>>,
+    grid_mesh: Product<crate::mesh::SceneMesh>,
+    mesh: Product<crate::mesh::SceneMesh>,
+    bvh: Product<crate::mesh::Bvh>,
+    surfaces: Product<crate::mesh::Surfaces>,
     last_trace: Trace,
 }
 
@@ -133,9 +159,19 @@ impl Scene {
             stereo_pair: Input::default(),
             calibration: Input::default(),
             stereo_options: Input::default(),
+            host_depth: Input::default(),
+            clip: Input::default(),
+            mesh_options: Input::default(),
+            surface_options: Input::default(),
             loaded_pair: Product::default(),
             disparity: Product::default(),
             depth: Product::default(),
+            camera: Product::default(),
+            depth_buffer: Product::default(),
+            grid_mesh: Product::default(),
+            mesh: Product::default(),
+            bvh: Product::default(),
+            surfaces: Product::default(),
             last_trace: {
                 let mut t = Trace::new();
                 t.finish();
@@ -158,7 +194,8 @@ impl Scene {
     ///
     /// # Errors
     /// `SizeMismatch` when the views differ in size; `InvalidArgument` for an empty view;
-    /// `TooLarge` over the configured pixel cap. On error the scene is unchanged.
+    /// `TooLarge` over the configured pixel cap; `SizeMismatch` when a host depth map of another
+    /// size was set ([`Scene::set_depth`]). On error the scene is unchanged.
     pub fn set_stereo_pair(&mut self, left: &ImageView, right: &ImageView) -> Result<()> {
         let limits = self.context.limits();
         limits.check("left image", left.width() as u64, left.height() as u64)?;
@@ -171,6 +208,18 @@ impl Scene {
                 right.width(),
                 right.height()
             )));
+        }
+        if let Some(host) = &self.host_depth.value {
+            let size = (host.depth.width() as u32, host.depth.height() as u32);
+            if size != (left.width(), left.height()) {
+                return Err(Error::SizeMismatch(format!(
+                    "the stereo pair is {}x{} but the host depth map is {}x{}",
+                    left.width(),
+                    left.height(),
+                    size.0,
+                    size.1
+                )));
+            }
         }
         self.stereo_pair.value = Some(StereoPair {
             left: left.to_owned_image(),
@@ -350,17 +399,34 @@ impl Scene {
         Ok(disparity)
     }
 
-    /// Depth of the left view in metres, `Z = f·B/(d + doffs)`, NaN where unknown (product
-    /// `depth`). Without a calibration, depth is up to scale ([`stereo::assumed_calibration`]) and
-    /// the trace carries a warning.
+    /// Depth of the left view in metres, NaN where unknown (product `depth`): the host's own depth
+    /// when one was set ([`Scene::set_depth`]; stereo is then skipped), else
+    /// `Z = f·B/(d + doffs)` from the stereo disparity. Without a calibration, stereo depth is up
+    /// to scale ([`stereo::assumed_calibration`]) and the trace carries a warning.
     ///
     /// # Errors
-    /// As [`Scene::disparity`].
+    /// `NotAvailable` with neither a host depth map nor a stereo pair; else as
+    /// [`Scene::disparity`].
     pub fn depth(&mut self) -> Result<Arc<Raster<f32>>> {
         self.traced(|scene, trace| scene.depth_traced(trace))
     }
 
     fn depth_traced(&mut self, trace: &mut Trace) -> Result<Arc<Raster<f32>>> {
+        if let Some(host) = &self.host_depth.value {
+            trace.record("stereo", StageStatus::Skipped, 0.0, "host depth given");
+            // Tag 1 keeps these versions apart from the stereo path's (which start with 0).
+            let versions = [1, self.host_depth.version];
+            let depth = Arc::clone(&host.depth);
+            return self
+                .depth
+                .get_or_share("depth", &versions, trace, |_| Ok(depth));
+        }
+        if self.stereo_pair.value.is_none() {
+            return Err(Error::NotAvailable(
+                "no depth: set a stereo pair (set_stereo_pair) or the host's depth (set_depth)"
+                    .into(),
+            ));
+        }
         let disparity = self.disparity_traced(trace)?;
         let (width, height) = (
             disparity.disparity.width() as u32,
@@ -376,7 +442,7 @@ impl Scene {
                 stereo::assumed_calibration(width, height)?
             }
         };
-        let versions = [self.disparity.generation, self.calibration.version];
+        let versions = [0, self.disparity.generation, self.calibration.version];
         self.depth.get_or_compute("depth", &versions, trace, |_| {
             stereo::depth_map(&disparity.disparity, &calibration)
         })

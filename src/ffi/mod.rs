@@ -18,6 +18,8 @@ mod boundary;
 pub mod context;
 mod handle;
 pub mod image;
+pub mod mesh;
+pub mod query;
 pub mod scene;
 pub mod status;
 pub mod stereo;

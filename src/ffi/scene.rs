@@ -15,7 +15,16 @@ pub struct plx_scene {
     _private: [u8; 0],
 }
 
-pub(crate) type SceneHandle = Handle<Scene>;
+pub(crate) type SceneHandle = Handle<SceneState>;
+
+/// What a `plx_scene` handle holds: the scene, and C copies of products whose Rust layout C
+/// cannot read, kept so that the pointers handed out stay valid until the scene changes.
+#[derive(Debug)]
+pub(crate) struct SceneState {
+    pub scene: Scene,
+    /// The surfaces as C structs, with the product they were converted from.
+    pub c_surfaces: Option<(Arc<crate::mesh::Surfaces>, Vec<super::query::plx_surface>)>,
+}
 
 /// Creates an empty scene in `context`.
 ///
@@ -31,7 +40,10 @@ pub unsafe extern "C" fn plx_scene_new(
             return Err(null_argument("out"));
         }
         let context = ContextHandle::from_ptr(context.cast(), Kind::Context, "context")?;
-        let scene = Scene::new(Arc::clone(&context.value));
+        let scene = SceneState {
+            scene: Scene::new(Arc::clone(&context.value)),
+            c_surfaces: None,
+        };
         *out = SceneHandle::into_raw(Kind::Scene, scene).cast();
         Ok(())
     })
@@ -50,6 +62,14 @@ pub unsafe extern "C" fn plx_scene_free(scene: *mut plx_scene) {
 pub(crate) unsafe fn with_scene(
     scene: *mut plx_scene,
     body: impl FnOnce(&mut Scene) -> Result<(), super::boundary::CallError>,
+) -> Status {
+    with_scene_state(scene, |state| body(&mut state.scene))
+}
+
+/// [`with_scene`] with the whole handle state (for products kept in C layout).
+pub(crate) unsafe fn with_scene_state(
+    scene: *mut plx_scene,
+    body: impl FnOnce(&mut SceneState) -> Result<(), super::boundary::CallError>,
 ) -> Status {
     let handle = match std::panic::catch_unwind(|| {
         SceneHandle::from_mut_ptr(scene.cast(), Kind::Scene, "scene")

@@ -164,7 +164,7 @@ pub struct plx_float_view {
     pub stride: usize,
 }
 
-fn float_view(raster: &Raster<f32>) -> plx_float_view {
+pub(crate) fn float_view(raster: &Raster<f32>) -> plx_float_view {
     plx_float_view {
         data: raster.pixels().as_ptr(),
         width: raster.width() as u32,

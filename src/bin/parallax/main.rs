@@ -25,9 +25,9 @@ struct Cli {
 enum Command {
     /// Version, compiled features and the GPU adapters found.
     Info(info::Args),
-    /// Scene mesh from depth (or disparity + calibration), written as GLB, PLY or OBJ.
+    /// Scene mesh from a stereo pair, a depth map or disparity + calibration, as GLB, PLY or OBJ.
     Mesh(mesh::Args),
-    /// Support planes and the gravity "up" from depth, as JSON and a preview over the photo.
+    /// Support planes and the gravity "up" from a stereo pair or depth, as JSON and a preview.
     Surfaces(surfaces::Args),
     /// Disparity, depth and confidence of a rectified stereo pair.
     Depth(depth::Args),

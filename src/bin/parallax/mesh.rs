@@ -1,23 +1,24 @@
-//! `parallax mesh`: depth → scene mesh → GLB / PLY / OBJ.
+//! `parallax mesh`: stereo pair or depth → scene mesh → GLB / PLY / OBJ, through the Scene (so the
+//! report shows stereo, depth, mesh.grid, mesh.simplify, mesh, camera).
 
 use std::path::PathBuf;
 
 use parallax::mesh::export::{
     write_glb, write_mesh_ply, write_obj, write_point_cloud_ply, GlbTexture,
 };
-use parallax::mesh::{simplify::simplify, MeshOptions, SceneMesh};
+use parallax::mesh::MeshOptions;
 use parallax::trace::Trace;
 use parallax::{Error, Result};
 
 use crate::common::CommonArgs;
-use crate::depth_input::DepthInput;
+use crate::depth_input::{absorb, DepthInput};
 
 /// Arguments of `parallax mesh`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     input: DepthInput,
-    /// Output mesh: `.glb` (with the photo as texture when --image is given), `.ply` or `.obj`.
+    /// Output mesh: `.glb` (with the photo, --image or --left, as texture), `.ply` or `.obj`.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
     /// Simplify to at most N triangles (flat regions coarse, edges fine).
@@ -32,7 +33,7 @@ pub struct Args {
     /// Relative depth noise tolerated between neighbouring pixels.
     #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
     depth_noise: f32,
-    /// Also write the point cloud (coloured with --image) as PLY.
+    /// Also write the point cloud (coloured with the photo) as PLY.
     #[arg(long, value_name = "FILE.ply")]
     out_points: Option<PathBuf>,
     #[command(flatten)]
@@ -55,34 +56,20 @@ pub fn run(args: Args) -> Result<()> {
         )));
     }
     let loaded = args.input.load(&mut trace)?;
-    let options = MeshOptions {
+    let mut scene = loaded.scene;
+    scene.set_mesh_options(MeshOptions {
         step: args.step,
         max_grazing_angle_deg: args.max_angle,
         depth_noise: args.depth_noise,
-        max_triangles: None,
-    };
-    let spinner = args.common.spinner("building the scene mesh");
-    let mut mesh = trace.time("mesh", "requested by mesh", |_| {
-        SceneMesh::from_depth(&loaded.depth, &loaded.camera, &options)
+        max_triangles: args.max_triangles,
     })?;
-    let full_triangles = mesh.triangle_count();
-    if let Some(budget) = args.max_triangles {
-        if budget == 0 {
-            return Err(Error::invalid("--max-triangles must be ≥ 1"));
-        }
-        if mesh.triangle_count() > budget {
-            mesh = trace.time("mesh.simplify", "--max-triangles given", |_| {
-                simplify(&mesh, budget)
-            });
-        } else {
-            trace.record(
-                "mesh.simplify",
-                parallax::trace::StageStatus::Skipped,
-                0.0,
-                "the grid mesh is already within --max-triangles",
-            );
-        }
-    }
+    let spinner = args.common.spinner("building the scene mesh");
+    let mesh = scene.mesh();
+    absorb(&mut trace, &scene);
+    let mesh = mesh?;
+    let camera = scene.camera();
+    absorb(&mut trace, &scene);
+    let camera = camera?;
     spinner.finish_and_clear();
     trace.time("mesh.export", "writing --out", |_| match format.as_str() {
         "glb" => {
@@ -95,24 +82,24 @@ pub fn run(args: Args) -> Result<()> {
         }
         "ply" => write_mesh_ply(&mesh, &args.out),
         _ => {
-            let texture = args.input.image.as_ref().map(|p| p.display().to_string());
+            let photo = args.input.image.as_ref().or(args.input.left.as_ref());
+            let texture = photo.map(|p| p.display().to_string());
             write_obj(&mesh, &args.out, texture.as_deref())
         }
     })?;
     if let Some(path) = &args.out_points {
         let colours = loaded.photo.as_ref().map(|p| p.to_linear_rgb());
-        write_point_cloud_ply(&loaded.depth, &loaded.camera, colours.as_ref(), path)?;
+        let depth = scene.depth()?;
+        write_point_cloud_ply(&depth, &camera, colours.as_ref(), path)?;
     }
     if !args.common.quiet {
         eprintln!(
-            "parallax: {} triangles ({} before simplification), {} vertices, near {:.3} m, far \
-             {:.3} m, f = {:.1} px → {}",
+            "parallax: {} triangles, {} vertices, near {:.3} m, far {:.3} m, f = {:.1} px → {}",
             mesh.triangle_count(),
-            full_triangles,
             mesh.vertex_count(),
-            loaded.camera.near,
-            loaded.camera.far,
-            loaded.camera.fx,
+            camera.near,
+            camera.far,
+            camera.fx,
             args.out.display()
         );
     }

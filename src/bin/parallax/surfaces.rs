@@ -1,15 +1,16 @@
-//! `parallax surfaces`: support planes and the gravity "up", as JSON and as a preview over the photo.
+//! `parallax surfaces`: support planes and the gravity "up", as JSON and as a preview over the
+//! photo, through the Scene (the report shows stereo, depth, mesh.grid, surfaces).
 
 use std::path::PathBuf;
 
 use glam::Vec2;
 use parallax::image::{Image, Raster};
-use parallax::mesh::{detect_surfaces, MeshOptions, SceneMesh, SurfaceOptions};
+use parallax::mesh::{MeshOptions, SurfaceOptions};
 use parallax::trace::Trace;
 use parallax::{Error, Result};
 
 use crate::common::CommonArgs;
-use crate::depth_input::DepthInput;
+use crate::depth_input::{absorb, DepthInput};
 
 /// Arguments of `parallax surfaces`.
 #[derive(clap::Args, Debug)]
@@ -50,50 +51,49 @@ pub fn run(args: Args) -> Result<()> {
     }
     let mut trace = Trace::new();
     let loaded = args.input.load(&mut trace)?;
+    let mut scene = loaded.scene;
+    let loaded_photo = loaded.photo;
     let spinner = args.common.spinner("finding support surfaces");
+    let depth = scene.depth();
+    absorb(&mut trace, &scene);
+    let depth = depth?;
     // Surfaces want every pixel's point; a step keeps large photos near 0.3 MP.
-    let pixels = loaded.depth.len() as f64;
+    let pixels = depth.len() as f64;
     let step = (pixels / 300_000.0).sqrt().ceil().max(1.0) as u32;
-    let mesh = trace.time("mesh", "needed by surfaces", |_| {
-        SceneMesh::from_depth(
-            &loaded.depth,
-            &loaded.camera,
-            &MeshOptions {
-                step,
-                ..Default::default()
-            },
-        )
+    scene.set_mesh_options(MeshOptions {
+        step,
+        ..Default::default()
     })?;
-    let options = SurfaceOptions {
+    scene.set_surface_options(SurfaceOptions {
         max_surfaces: args.max_surfaces,
         ..Default::default()
-    };
-    let found = trace.time("surfaces", "requested by surfaces", |_| {
-        detect_surfaces(&mesh, &loaded.camera, &options)
     })?;
+    let found = scene.surfaces();
+    absorb(&mut trace, &scene);
+    let found = found?;
     spinner.finish_and_clear();
     if found.up_source == parallax::mesh::UpSource::CameraFallback {
         trace.warn("no near-horizontal plane found: up is the camera's +Y");
     }
     if let Some(path) = &args.out {
-        let json = serde_json::to_string_pretty(&found)
+        let json = serde_json::to_string_pretty(&*found)
             .map_err(|e| Error::Internal(format!("surfaces JSON: {e}")))?;
         std::fs::write(path, json).map_err(|e| Error::io(path, e))?;
     }
     if let Some(path) = &args.out_preview {
-        let background = match &loaded.photo {
+        let camera = scene.camera();
+        absorb(&mut trace, &scene);
+        let camera = camera?;
+        let background = match &loaded_photo {
             Some(photo) => photo.to_linear_rgb(),
-            None => grey_depth(&loaded.depth),
+            None => grey_depth(&depth),
         };
         let mut out = background.clone();
-        let tolerance = options.distance_tolerance * 2.0;
+        let tolerance = SurfaceOptions::default().distance_tolerance * 2.0;
         for y in 0..out.height() {
             for x in 0..out.width() {
                 let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let Some(p) = loaded
-                    .camera
-                    .unproject(pixel.x, pixel.y, *loaded.depth.get(x, y))
-                else {
+                let Some(p) = camera.unproject(pixel.x, pixel.y, *depth.get(x, y)) else {
                     continue;
                 };
                 // The first (largest) surface whose plane holds this pixel's point, inside its

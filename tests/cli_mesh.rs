@@ -1,0 +1,189 @@
+//! `parallax mesh` and `parallax surfaces` through the Scene: from a synthetic stereo pair (stereo
+//! runs) and from a depth PFM (the host-depth path: stereo skipped), checked via the outputs and
+//! the `--report` stages.
+
+use std::path::Path;
+use std::process::Command;
+
+use parallax::image::{Image, PixelFormat, Raster};
+
+fn parallax() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_parallax"));
+    c.env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    c
+}
+
+fn run(args: &[&str], dir: &Path) -> serde_json::Value {
+    let out = parallax().current_dir(dir).args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "parallax {args:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report = std::fs::read_to_string(dir.join("r.json")).unwrap();
+    serde_json::from_str(&report).unwrap()
+}
+
+fn stage<'a>(report: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    report["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == name)
+        .unwrap_or_else(|| panic!("no stage {name} in {report}"))
+}
+
+/// A random texture, and the right view seeing it `shift` px further left (disparity `shift`).
+fn write_pair(dir: &Path, w: u32, h: u32, shift: i64) {
+    let texture = |x: i64, y: i64| -> u8 {
+        let mut v = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) as u64;
+        v ^= v >> 13;
+        v = v.wrapping_mul(0x5bd1_e995);
+        (v >> 24) as u8
+    };
+    for (name, offset) in [("l.png", 0), ("r.png", shift)] {
+        let data = (0..h as i64)
+            .flat_map(|y| (0..w as i64).map(move |x| (x, y)))
+            .map(|(x, y)| texture(x + offset, y))
+            .collect();
+        Image::from_bytes(w, h, PixelFormat::Gray8, data)
+            .unwrap()
+            .save_png(dir.join(name))
+            .unwrap();
+    }
+}
+
+/// The face count in a PLY header.
+fn ply_faces(path: &Path) -> usize {
+    let ply = std::fs::read(path).unwrap();
+    let header = String::from_utf8_lossy(&ply[..ply.len().min(400)]).to_string();
+    assert!(header.starts_with("ply"), "{header}");
+    header
+        .lines()
+        .find_map(|l| l.strip_prefix("element face "))
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap()
+}
+
+#[test]
+fn mesh_from_a_stereo_pair_runs_stereo_in_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    write_pair(dir.path(), 96, 48, 6);
+    let args = [
+        "mesh",
+        "--quiet",
+        "--left",
+        "l.png",
+        "--right",
+        "r.png",
+        "--preset",
+        "fast",
+        "--max-disparity",
+        "16",
+        "--focal",
+        "600",
+        "--baseline",
+        "0.1",
+        "--out",
+        "m.ply",
+        "--report",
+        "r.json",
+    ];
+    let report = run(&args, dir.path());
+    for name in ["stereo", "depth", "mesh.grid", "mesh", "mesh.export"] {
+        assert_eq!(
+            stage(&report, name)["status"],
+            "computed",
+            "{name}: {report}"
+        );
+    }
+    assert_eq!(stage(&report, "mesh.simplify")["status"], "skipped");
+    let full = ply_faces(&dir.path().join("m.ply"));
+    // The grid of a 96×48 view has at most 2·95·47 triangles.
+    assert!(full > 4000 && full <= 2 * 95 * 47, "{full}");
+
+    let mut budget = args.to_vec();
+    budget.extend(["--max-triangles", "500"]);
+    let report = run(&budget, dir.path());
+    assert_eq!(stage(&report, "mesh.simplify")["status"], "computed");
+    // The budget is met where the topology allows; stereo noise leaves a few cut pieces.
+    let simplified = ply_faces(&dir.path().join("m.ply"));
+    assert!(
+        simplified > 0 && simplified < full / 4,
+        "{simplified} of {full}"
+    );
+
+    // Missing --right is a usage error.
+    let out = parallax()
+        .current_dir(dir.path())
+        .args(["mesh", "--left", "l.png", "--out", "m.ply"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn surfaces_from_host_depth_skip_stereo_and_find_the_floor() {
+    let dir = tempfile::tempdir().unwrap();
+    // A floor 1 m below a camera of f = 60 px (60×48, fov from --focal) and a wall at 6 m.
+    let (w, h, f) = (64usize, 48usize, 60.0f32);
+    let depth = Raster::from_fn(w, h, |_, y| {
+        let dy = -((y as f32 + 0.5) - h as f32 / 2.0) / f;
+        if dy < 0.0 {
+            (-1.0 / dy).min(6.0)
+        } else {
+            6.0
+        }
+    });
+    depth.write_pfm(dir.path().join("z.pfm")).unwrap();
+    let report = run(
+        &[
+            "surfaces",
+            "--quiet",
+            "--depth",
+            "z.pfm",
+            "--focal",
+            "60",
+            "--out",
+            "s.json",
+            "--out-preview",
+            "p.png",
+            "--report",
+            "r.json",
+        ],
+        dir.path(),
+    );
+    let stereo = stage(&report, "stereo");
+    assert_eq!(stereo["status"], "skipped");
+    assert_eq!(stereo["why"], "host depth given");
+    assert_eq!(stage(&report, "surfaces")["status"], "computed");
+    assert!(dir.path().join("p.png").exists());
+    let found: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("s.json")).unwrap()).unwrap();
+    let floor = found["surfaces"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["kind"] == "horizontal")
+        .unwrap_or_else(|| panic!("no horizontal surface: {found}"));
+    assert!(
+        (floor["offset"].as_f64().unwrap() + 1.0).abs() < 0.02,
+        "{floor}"
+    );
+    assert!(found["up"][1].as_f64().unwrap() > 0.99);
+
+    // The same depth as a mesh (GLB), host path again.
+    let report = run(
+        &[
+            "mesh", "--quiet", "--depth", "z.pfm", "--focal", "60", "--out", "m.glb", "--report",
+            "r.json",
+        ],
+        dir.path(),
+    );
+    assert_eq!(stage(&report, "stereo")["status"], "skipped");
+    assert_eq!(stage(&report, "mesh")["status"], "computed");
+    let glb = std::fs::read(dir.path().join("m.glb")).unwrap();
+    assert_eq!(&glb[..4], b"glTF");
+}
