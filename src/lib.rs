@@ -10,6 +10,7 @@
 //! |---|---|
 //! | [`image`] | image buffers and views, sRGB↔linear, PNG/JPEG/PFM/EXR/HDR I/O |
 //! | [`camera`] | calibration, disparity ↔ depth |
+//! | [`reference`] | CPU path tracer and synthetic stereo scenes with exact ground truth |
 //! | [`scene`] | the demand-driven pipeline with cached products and a [`trace::Trace`] |
 //! | [`ffi`] | the C ABI (`include/parallax.h`) |
 //! | `render` (feature `gpu`) | the headless wgpu context and renderer |
@@ -20,6 +21,7 @@ pub mod camera;
 pub mod error;
 
 pub mod image;
+pub mod reference;
 #[cfg(feature = "gpu")]
 pub mod render;
 pub mod scene;
