@@ -121,7 +121,12 @@ impl Brdf {
 
     /// Samples an incoming direction; returns (wi, f, pdf) or None when the sample leaves the
     /// upper hemisphere or carries no weight.
-    pub(crate) fn sample(&self, wo: Vec3A, u_lobe: f32, u: glam::Vec2) -> Option<(Vec3A, Vec3A, f32)> {
+    pub(crate) fn sample(
+        &self,
+        wo: Vec3A,
+        u_lobe: f32,
+        u: glam::Vec2,
+    ) -> Option<(Vec3A, Vec3A, f32)> {
         if wo.z <= 0.0 {
             return None;
         }

@@ -99,11 +99,7 @@ pub fn insert_shape(name: &str, position: [f32; 3], scale: f32, yaw_deg: f32) ->
         shape,
         material,
         transform: Transform {
-            translation: [
-                position[0],
-                position[1] + half_height * scale,
-                position[2],
-            ],
+            translation: [position[0], position[1] + half_height * scale, position[2]],
             rotation_deg: [yaw_deg, 0.0, 0.0],
             scale: [scale; 3],
         },

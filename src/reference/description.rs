@@ -571,7 +571,10 @@ impl Shape {
         match self {
             Shape::Plane { size } => size.iter().try_for_each(|s| positive("plane size", *s)),
             Shape::Box { size } => size.iter().try_for_each(|s| positive("box size", *s)),
-            Shape::Sphere { radius, segments: s } => {
+            Shape::Sphere {
+                radius,
+                segments: s,
+            } => {
                 positive("sphere radius", *radius)?;
                 segments(*s)
             }

@@ -83,15 +83,15 @@ impl Geometry {
             for tri in &mesh.indices {
                 let p = tri.map(|i| Vec3A::from(m.transform_point3(mesh.positions[i as usize])));
                 let n = tri.map(|i| {
-                    let n = Vec3A::from(normal_matrix * mesh.normals[i as usize]).normalize_or_zero();
+                    let n =
+                        Vec3A::from(normal_matrix * mesh.normals[i as usize]).normalize_or_zero();
                     if n == Vec3A::ZERO {
                         (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero()
                     } else {
                         n
                     }
                 });
-                let texture_points =
-                    tri.map(|i| Vec3A::from(mesh.positions[i as usize] * scale));
+                let texture_points = tri.map(|i| Vec3A::from(mesh.positions[i as usize] * scale));
                 triangles.push(Triangle {
                     v0: p[0],
                     v1: p[1],
@@ -184,8 +184,8 @@ impl Geometry {
         if ng.dot(d) > 0.0 {
             ng = -ng;
         }
-        let mut ns =
-            (attr.normals[0] * b0 + attr.normals[1] * b1 + attr.normals[2] * b2).normalize_or_zero();
+        let mut ns = (attr.normals[0] * b0 + attr.normals[1] * b1 + attr.normals[2] * b2)
+            .normalize_or_zero();
         if ns == Vec3A::ZERO {
             ns = ng;
         } else if ns.dot(ng) < 0.0 {

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::brdf::Brdf;
 use super::geometry::{plane_distance_f64, Geometry, SurfaceHit};
-use super::lights::{EnvLight, Emitter};
+use super::lights::{Emitter, EnvLight};
 use super::sampling::{power_heuristic, Frame, Rng};
 
 /// Rows per unit of parallel work.
@@ -59,7 +59,7 @@ impl Camera {
     }
 
     /// World vector → camera frame (x right, y up, z backwards).
-    pub(crate) fn to_camera(&self, v: Vec3A) -> Vec3A {
+    pub(crate) fn to_camera(self, v: Vec3A) -> Vec3A {
         Vec3A::new(v.dot(self.right), v.dot(self.up), -v.dot(self.forward))
     }
 }
@@ -219,7 +219,17 @@ impl Tracer {
                     let origin = offset(sp.position, ng);
                     let record = if bounce == 0 { shadow.take() } else { None };
                     radiance += throughput
-                        * self.direct_light(&sp.position, origin, ng, &frame, wo, &brdf, rng, record, counts);
+                        * self.direct_light(
+                            &sp.position,
+                            origin,
+                            ng,
+                            &frame,
+                            wo,
+                            &brdf,
+                            rng,
+                            record,
+                            counts,
+                        );
 
                     let lobe = rng.uniform();
                     let u = rng.uniform2();
@@ -336,7 +346,10 @@ impl Tracer {
         let w = self.camera.width;
         let nl = self.light_count();
         let band = BAND_ROWS * w;
-        let work = |(band_index, (pixels, mut shadow_band)): (usize, (&mut [PixelSums], Option<&mut [ShadowSums]>))| {
+        let work = |(band_index, (pixels, mut shadow_band)): (
+            usize,
+            (&mut [PixelSums], Option<&mut [ShadowSums]>),
+        )| {
             let mut counts = RayCounts::default();
             for (k, acc) in pixels.iter_mut().enumerate() {
                 let index = band_index * band + k;
@@ -412,36 +425,41 @@ impl Tracer {
         let len = dir.length();
         let d = Vec3A::new(dir.x as f32, dir.y as f32, dir.z as f32).normalize();
         let eye = cam.eyes[0];
-        let fwd = DVec3::new(cam.forward.x as f64, cam.forward.y as f64, cam.forward.z as f64);
+        let fwd = DVec3::new(
+            cam.forward.x as f64,
+            cam.forward.y as f64,
+            cam.forward.z as f64,
+        );
         let nothing = PixelTruth {
             depth: f64::NAN,
             normal: Vec3A::ZERO,
             visible_right: false,
         };
-        let (t_along_dir, normal_world, position) = match self.closest(eye, d, f32::INFINITY, counts) {
-            Hit::Miss => return nothing,
-            Hit::Surface(hit) => {
-                let tri = self.geometry.triangle(hit.triangle);
-                let o = [eye.x as f64, eye.y as f64, eye.z as f64];
-                // t for the unnormalised direction (forward component 1), in f64.
-                let t = plane_distance_f64(tri, o, dir.to_array());
-                let sp = self.geometry.surface_point(eye, d, hit);
-                if !(t.is_finite() && t > 0.0) {
-                    return nothing;
+        let (t_along_dir, normal_world, position) =
+            match self.closest(eye, d, f32::INFINITY, counts) {
+                Hit::Miss => return nothing,
+                Hit::Surface(hit) => {
+                    let tri = self.geometry.triangle(hit.triangle);
+                    let o = [eye.x as f64, eye.y as f64, eye.z as f64];
+                    // t for the unnormalised direction (forward component 1), in f64.
+                    let t = plane_distance_f64(tri, o, dir.to_array());
+                    let sp = self.geometry.surface_point(eye, d, hit);
+                    if !(t.is_finite() && t > 0.0) {
+                        return nothing;
+                    }
+                    (t, sp.shading_normal, sp.position)
                 }
-                (t, sp.shading_normal, sp.position)
-            }
-            Hit::Light(i, t) => {
-                let p = eye + d * t;
-                let n = match &self.emitters[i] {
-                    Emitter::Rect { normal, .. } => *normal,
-                    Emitter::Sphere { center, .. } => (p - *center).normalize_or_zero(),
-                    Emitter::Directional { .. } => -d,
-                };
-                let n = if n.dot(d) > 0.0 { -n } else { n };
-                (t as f64 / len, n, p)
-            }
-        };
+                Hit::Light(i, t) => {
+                    let p = eye + d * t;
+                    let n = match &self.emitters[i] {
+                        Emitter::Rect { normal, .. } => *normal,
+                        Emitter::Sphere { center, .. } => (p - *center).normalize_or_zero(),
+                        Emitter::Directional { .. } => -d,
+                    };
+                    let n = if n.dot(d) > 0.0 { -n } else { n };
+                    (t as f64 / len, n, p)
+                }
+            };
         let depth = t_along_dir * dir.dot(fwd);
         // Visible from the right camera: nothing between its centre and the point.
         let right_eye = cam.eyes[1];

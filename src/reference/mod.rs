@@ -273,7 +273,13 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<Images> {
         h,
         truth
             .iter()
-            .map(|t| if t.depth.is_nan() { f32::NAN } else { (fb / t.depth) as f32 })
+            .map(|t| {
+                if t.depth.is_nan() {
+                    f32::NAN
+                } else {
+                    (fb / t.depth) as f32
+                }
+            })
             .collect(),
     );
     let nonocc = Raster::from_vec(

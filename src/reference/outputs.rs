@@ -229,17 +229,20 @@ impl Images {
     /// rounded up to a multiple of 16).
     pub fn calib_txt(&self) -> String {
         let c = &self.calibration;
-        let finite = || self.disparity.pixels().iter().copied().filter(|d| d.is_finite());
+        let finite = || {
+            self.disparity
+                .pixels()
+                .iter()
+                .copied()
+                .filter(|d| d.is_finite())
+        };
         let vmin = finite().fold(f32::INFINITY, f32::min);
         let vmax = finite().fold(0.0f32, f32::max);
         let vmin = if vmin.is_finite() { vmin.floor() } else { 0.0 };
         let ndisp = (((vmax.ceil() as u32) / 16 + 1) * 16).max(16);
         let cam = format!(
             "[{} 0 {}; 0 {} {}; 0 0 1]",
-            c.focal_px,
-            c.cx,
-            c.focal_px,
-            c.cy
+            c.focal_px, c.cx, c.focal_px, c.cy
         );
         format!(
             "cam0={cam}\ncam1={cam}\ndoffs={}\nbaseline={}\nwidth={}\nheight={}\nndisp={ndisp}\nisint=0\nvmin={}\nvmax={}\n",
@@ -315,10 +318,7 @@ pub(crate) fn camera_to_world(camera: &Camera) -> [f32; 16] {
 }
 
 /// The environment seen from the camera as an equirectangular map in the camera frame.
-pub(crate) fn environment_map(
-    env: &super::lights::EnvLight,
-    camera: &Camera,
-) -> Raster<[f32; 3]> {
+pub(crate) fn environment_map(env: &super::lights::EnvLight, camera: &Camera) -> Raster<[f32; 3]> {
     let (w, h) = ENVIRONMENT_SIZE;
     Raster::from_fn(w, h, |x, y| {
         let uv = glam::Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);

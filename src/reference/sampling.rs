@@ -79,10 +79,10 @@ impl Frame {
             n,
         }
     }
-    pub(crate) fn to_local(&self, v: Vec3A) -> Vec3A {
+    pub(crate) fn to_local(self, v: Vec3A) -> Vec3A {
         Vec3A::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
     }
-    pub(crate) fn to_world(&self, v: Vec3A) -> Vec3A {
+    pub(crate) fn to_world(self, v: Vec3A) -> Vec3A {
         self.t * v.x + self.b * v.y + self.n * v.z
     }
 }
@@ -176,7 +176,11 @@ impl Distribution1D {
     pub(crate) fn sample(&self, u: f32) -> (f32, f32, usize) {
         let n = self.func.len();
         // Last cell whose cdf start is <= u.
-        let idx = self.cdf.partition_point(|c| *c <= u).saturating_sub(1).min(n - 1);
+        let idx = self
+            .cdf
+            .partition_point(|c| *c <= u)
+            .saturating_sub(1)
+            .min(n - 1);
         let width = self.cdf[idx + 1] - self.cdf[idx];
         let du = if width > 0.0 {
             ((u - self.cdf[idx]) / width).clamp(0.0, 1.0)

@@ -74,7 +74,7 @@ pub(crate) fn tessellate(shape: &Shape) -> TriMesh {
                     let mut n = Vec3::ZERO;
                     n[axis] = sign;
                     // Two tangents so that t × b = n.
-                    let t = Vec3::from([Vec3::Y, Vec3::Z, Vec3::X][axis]) * sign;
+                    let t = [Vec3::Y, Vec3::Z, Vec3::X][axis] * sign;
                     let b = n.cross(t);
                     let (t, b) = (t * h, b * h);
                     let c = n * h;
@@ -88,7 +88,13 @@ pub(crate) fn tessellate(shape: &Shape) -> TriMesh {
             m.grid(s, (s / 2).max(2), |u, v| {
                 let theta = v * PI;
                 let phi = u * TAU;
-                let n = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+                // Exact poles: sin(π) is not 0 in f32, which would leave slivers there.
+                let (sin_t, cos_t) = match v {
+                    0.0 => (0.0, 1.0),
+                    1.0 => (0.0, -1.0),
+                    _ => theta.sin_cos(),
+                };
+                let n = Vec3::new(sin_t * phi.cos(), cos_t, sin_t * phi.sin());
                 (n * r, n)
             });
         }
@@ -147,7 +153,10 @@ pub(crate) fn tessellate(shape: &Shape) -> TriMesh {
             match normals {
                 Some(n) => {
                     m.positions = positions;
-                    m.normals = n.iter().map(|v| Vec3::from(*v).normalize_or_zero()).collect();
+                    m.normals = n
+                        .iter()
+                        .map(|v| Vec3::from(*v).normalize_or_zero())
+                        .collect();
                     m.indices = indices.clone();
                 }
                 None => {
@@ -187,7 +196,13 @@ mod tests {
     #[test]
     fn closed_shapes_enclose_their_volume_facing_outwards() {
         let cases = [
-            (Shape::Box { size: [1.0, 2.0, 3.0] }, 6.0, 1e-5),
+            (
+                Shape::Box {
+                    size: [1.0, 2.0, 3.0],
+                },
+                6.0,
+                1e-5,
+            ),
             (
                 Shape::Sphere {
                     radius: 0.5,

@@ -10,8 +10,7 @@ use super::description::{Pattern, Texture};
 const SPECKLE_CELL_M: f32 = 0.004;
 
 fn hash3(x: i32, y: i32, z: i32) -> f32 {
-    let mut h = (x as u32)
-        .wrapping_mul(0x8da6_b343)
+    let mut h = (x as u32).wrapping_mul(0x8da6_b343)
         ^ (y as u32).wrapping_mul(0xd816_3841)
         ^ (z as u32).wrapping_mul(0xcb1a_b31f);
     h ^= h >> 15;
