@@ -304,7 +304,7 @@ pub enum Pattern {
         #[serde(default)]
         octaves: Option<u32>,
     },
-    /// Wood-like rings around the object's Y axis, distorted by noise.
+    /// Wood-like stripes: growth rings around an axis parallel to X, distorted by noise.
     Wood,
     /// Random value per cell.
     Speckle,

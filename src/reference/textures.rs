@@ -63,10 +63,12 @@ fn pattern_value(pattern: Pattern, p: Vec3A) -> f32 {
         }
         Pattern::Noise { octaves } => fbm(p, octaves.unwrap_or(4)),
         Pattern::Wood => {
-            // Rings around the Y axis, wobbled by low-frequency noise, with soft ring profiles.
-            let r = (p.x * p.x + p.z * p.z).sqrt() + 0.6 * fbm(p * Vec3A::new(0.5, 0.1, 0.5), 3);
+            // Growth rings around an axis parallel to X, 5 cells below the object: on surfaces
+            // along X and Z they show as the slightly curved stripes of a plank, wobbled by noise.
+            let y = p.y + 5.0;
+            let r = (y * y + p.z * p.z).sqrt() + 0.5 * fbm(p * Vec3A::new(0.15, 0.8, 0.8), 3);
             let ring = (r * 4.0).fract();
-            let grain = value_noise(p * Vec3A::new(20.0, 1.0, 20.0));
+            let grain = value_noise(p * Vec3A::new(1.0, 30.0, 30.0));
             (ring * ring * 0.8 + 0.2 * grain).clamp(0.0, 1.0)
         }
         Pattern::Speckle => {

@@ -5,6 +5,7 @@
 
 mod common;
 mod info;
+mod synth;
 
 use clap::{Parser, Subcommand};
 
@@ -20,12 +21,15 @@ struct Cli {
 enum Command {
     /// Version, compiled features and the GPU adapters found.
     Info(info::Args),
+    /// Render a synthetic stereo scene with exact ground truth (Middlebury layout, composites).
+    Synth(synth::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(args) => info::run(args),
+        Command::Synth(args) => synth::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
