@@ -12,15 +12,33 @@ fn synth_writes_the_middlebury_layout_and_composites() {
     let dir = tempfile::tempdir().unwrap();
     let report = dir.path().join("report.json");
     let out = parallax()
-        .args(["synth", "--scene", "two-lights", "--width", "32", "--spp", "2", "--quiet"])
-        .args(["--insert", "box@0.5,0,-1,1,30", "--insert", "sphere@-0.3,0.75,-1.8"])
+        .args([
+            "synth",
+            "--scene",
+            "two-lights",
+            "--width",
+            "32",
+            "--spp",
+            "2",
+            "--quiet",
+        ])
+        .args([
+            "--insert",
+            "box@0.5,0,-1,1,30",
+            "--insert",
+            "sphere@-0.3,0.75,-1.8",
+        ])
         .arg("--out-dir")
         .arg(dir.path())
         .arg("--report")
         .arg(&report)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     for name in [
         "im0.png",
         "im1.png",
@@ -39,8 +57,8 @@ fn synth_writes_the_middlebury_layout_and_composites() {
     ] {
         assert!(dir.path().join(name).is_file(), "{name} missing");
     }
-    let calib = parallax::camera::StereoCalibration::load_middlebury(dir.path().join("calib.txt"))
-        .unwrap();
+    let calib =
+        parallax::camera::StereoCalibration::load_middlebury(dir.path().join("calib.txt")).unwrap();
     assert_eq!(calib.cx, 16.0);
     let lights: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("lights.json")).unwrap())
@@ -60,7 +78,10 @@ fn synth_writes_the_middlebury_layout_and_composites() {
         &parallax::image::ImageLimits::default(),
     )
     .unwrap();
-    assert!(mask.as_bytes().contains(&255), "inserted objects not in the mask");
+    assert!(
+        mask.as_bytes().contains(&255),
+        "inserted objects not in the mask"
+    );
 }
 
 #[test]
@@ -69,7 +90,10 @@ fn synth_rejects_bad_input_with_a_message() {
     let cases: [(&[&str], &str); 4] = [
         (&["--scene", "kitchen"], "built-in scene"),
         (&["--scene", "room", "--insert", "model.glb@0,0,0"], "glTF"),
-        (&["--scene", "room", "--insert", "sphere@0,0"], "3 to 5 numbers"),
+        (
+            &["--scene", "room", "--insert", "sphere@0,0"],
+            "3 to 5 numbers",
+        ),
         (&["--scene", "room", "--spp", "0"], "samples per pixel"),
     ];
     for (args, message) in cases {

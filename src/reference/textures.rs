@@ -9,10 +9,12 @@ use super::description::{Pattern, Texture};
 /// its own value, coarse enough not to alias into noise at that resolution.
 const SPECKLE_CELL_M: f32 = 0.004;
 
-fn hash3(x: i32, y: i32, z: i32) -> f32 {
-    let mut h = (x as u32).wrapping_mul(0x8da6_b343)
-        ^ (y as u32).wrapping_mul(0xd816_3841)
-        ^ (z as u32).wrapping_mul(0xcb1a_b31f);
+const HASH_X: u32 = 0x8da6_b343;
+const HASH_Y: u32 = 0xd816_3841;
+const HASH_Z: u32 = 0xcb1a_b31f;
+
+/// Finishes a lattice hash (the per-axis products xor-ed together) into [0, 1).
+fn finish_hash(mut h: u32) -> f32 {
     h ^= h >> 15;
     h = h.wrapping_mul(0x2c1b_3c6d);
     h ^= h >> 12;
@@ -21,25 +23,39 @@ fn hash3(x: i32, y: i32, z: i32) -> f32 {
     (h >> 8) as f32 / (1u32 << 24) as f32
 }
 
+fn hash3(x: i32, y: i32, z: i32) -> f32 {
+    finish_hash(
+        (x as u32).wrapping_mul(HASH_X)
+            ^ (y as u32).wrapping_mul(HASH_Y)
+            ^ (z as u32).wrapping_mul(HASH_Z),
+    )
+}
+
 /// Trilinear value noise in [0, 1] with a smoothstep fade.
 pub(crate) fn value_noise(p: Vec3A) -> f32 {
     let f = p.floor();
-    let (xi, yi, zi) = (f.x as i32, f.y as i32, f.z as i32);
+    let (xi, yi, zi) = (f.x as i32 as u32, f.y as i32 as u32, f.z as i32 as u32);
     let t = p - f;
     let s = t * t * (Vec3A::splat(3.0) - 2.0 * t);
     let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-    let mut c = [0.0f32; 8];
-    for (i, v) in c.iter_mut().enumerate() {
-        *v = hash3(
-            xi + (i & 1) as i32,
-            yi + ((i >> 1) & 1) as i32,
-            zi + ((i >> 2) & 1) as i32,
-        );
-    }
-    let x0 = lerp(c[0], c[1], s.x);
-    let x1 = lerp(c[2], c[3], s.x);
-    let x2 = lerp(c[4], c[5], s.x);
-    let x3 = lerp(c[6], c[7], s.x);
+    // The lattice hash is separable before its finaliser: six products serve all eight corners.
+    let hx = [
+        xi.wrapping_mul(HASH_X),
+        xi.wrapping_add(1).wrapping_mul(HASH_X),
+    ];
+    let hy = [
+        yi.wrapping_mul(HASH_Y),
+        yi.wrapping_add(1).wrapping_mul(HASH_Y),
+    ];
+    let hz = [
+        zi.wrapping_mul(HASH_Z),
+        zi.wrapping_add(1).wrapping_mul(HASH_Z),
+    ];
+    let c = |i: usize, j: usize, k: usize| finish_hash(hx[i] ^ hy[j] ^ hz[k]);
+    let x0 = lerp(c(0, 0, 0), c(1, 0, 0), s.x);
+    let x1 = lerp(c(0, 1, 0), c(1, 1, 0), s.x);
+    let x2 = lerp(c(0, 0, 1), c(1, 0, 1), s.x);
+    let x3 = lerp(c(0, 1, 1), c(1, 1, 1), s.x);
     lerp(lerp(x0, x1, s.y), lerp(x2, x3, s.y), s.z)
 }
 

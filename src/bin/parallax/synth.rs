@@ -56,9 +56,9 @@ fn parse_insert(spec: &str) -> parallax::Result<Object> {
     let numbers: Vec<f32> = place
         .split(',')
         .map(|s| {
-            s.trim().parse::<f32>().map_err(|_| {
-                Error::invalid(format!("--insert {spec:?}: {s:?} is not a number"))
-            })
+            s.trim()
+                .parse::<f32>()
+                .map_err(|_| Error::invalid(format!("--insert {spec:?}: {s:?} is not a number")))
         })
         .collect::<parallax::Result<_>>()?;
     if !(3..=5).contains(&numbers.len()) {
