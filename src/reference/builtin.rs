@@ -286,12 +286,12 @@ fn two_lights() -> Scene {
         Light::Sphere {
             center: [-1.0, 2.0, -1.2],
             radius: 0.08,
-            radiance: [260.0, 250.0, 230.0],
+            radiance: [170.0, 163.0, 150.0],
         },
         Light::Sphere {
             center: [1.1, 1.8, -2.4],
             radius: 0.08,
-            radiance: [180.0, 190.0, 220.0],
+            radiance: [115.0, 122.0, 140.0],
         },
     ];
     scene
@@ -444,9 +444,9 @@ fn window() -> Scene {
             angular_diameter_deg: 0.53,
         }],
         environment: Environment::Sky {
-            zenith: [0.35, 0.5, 0.9],
-            horizon: [0.8, 0.85, 0.9],
-            ground: [0.25, 0.22, 0.2],
+            zenith: [1.2, 1.7, 3.0],
+            horizon: [2.6, 2.7, 2.9],
+            ground: [0.8, 0.7, 0.6],
         },
     }
 }
