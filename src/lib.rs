@@ -13,6 +13,7 @@
 //! | [`camera`] | calibration, disparity ↔ depth, pinhole camera, depth-buffer encodings |
 //! | [`mesh`] | scene mesh from depth, ray queries (BVH), support surfaces, placement, export |
 //! | [`context`] | what scenes share: size caps, the lazily opened GPU |
+//! | [`reference`] | CPU path tracer and synthetic stereo scenes with exact ground truth |
 //! | [`scene`] | the demand-driven pipeline with cached products and a [`trace::Trace`] |
 //! | [`ffi`] | the C ABI (`include/parallax.h`) |
 //! | `render` (feature `gpu`) | the headless wgpu context and renderer |
@@ -25,6 +26,7 @@ pub mod error;
 pub mod ffi;
 pub mod image;
 pub mod mesh;
+pub mod reference;
 #[cfg(feature = "gpu")]
 pub mod render;
 pub mod scene;

@@ -10,6 +10,7 @@ mod eval;
 mod info;
 mod mesh;
 mod surfaces;
+mod synth;
 
 use clap::{Parser, Subcommand};
 
@@ -33,6 +34,8 @@ enum Command {
     Depth(depth::Args),
     /// Benchmarks against ground truth and peers (`parallax eval stereo`).
     Eval(eval::Args),
+    /// Render a synthetic stereo scene with exact ground truth (Middlebury layout, composites).
+    Synth(synth::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -43,6 +46,7 @@ fn main() -> std::process::ExitCode {
         Command::Surfaces(args) => surfaces::run(args),
         Command::Depth(args) => depth::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Synth(args) => synth::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
