@@ -8,6 +8,7 @@
 //!
 //! | module | stage |
 //! |---|---|
+//! | `artefact` (feature `gltf`) | glTF 2.0 artefacts: validated loading, materials, instances |
 //! | [`image`] | image buffers and views, sRGB↔linear, PNG/JPEG/PFM/EXR/HDR I/O |
 //! | [`camera`] | calibration, disparity ↔ depth |
 //! | [`scene`] | the demand-driven pipeline with cached products and a [`trace::Trace`] |
@@ -16,6 +17,8 @@
 
 #![warn(missing_docs)]
 
+#[cfg(feature = "gltf")]
+pub mod artefact;
 pub mod camera;
 pub mod error;
 
