@@ -10,7 +10,7 @@ use super::buffers::Buffers;
 use super::limits::{mul, MemoryBudget};
 use super::material::{Material, MaterialBuilder};
 use super::mesh::{self, Context, MAX_VERTEX_BYTES};
-use super::{extensions, Aabb, Artefact, LoadOptions};
+use super::{extensions, glb, Aabb, Artefact, LoadOptions};
 use crate::error::{Error, Result};
 
 /// How many validation problems an error message lists before "and N more".
@@ -26,15 +26,7 @@ pub(crate) fn load(
     let mut budget = MemoryBudget::new(limits);
     budget.reserve(&format!("{source} (file bytes)"), bytes.len() as u64)?;
     let mut warnings = Vec::new();
-    let kind = if bytes.starts_with(b"glTF") {
-        "GLB"
-    } else {
-        "glTF JSON"
-    };
-
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes)
-        .map_err(|e| Error::format(format!("{source}: invalid {kind}: {e}")))?;
-    let mut json = document.into_json();
+    let (mut json, blob) = parse(bytes, source)?;
 
     let version = json.asset.version.as_str();
     if !version.starts_with("2.") {
@@ -57,26 +49,30 @@ pub(crate) fn load(
             json.scene = None;
         }
     }
-    let doc = gltf::Document::from_json(json).map_err(|e| match e {
-        gltf::Error::Validation(problems) => {
-            let listed: Vec<String> = problems
-                .iter()
-                .take(LISTED_PROBLEMS)
-                .map(|(path, err)| format!("{path}: {err}"))
-                .collect();
-            let more = problems.len().saturating_sub(LISTED_PROBLEMS);
-            Error::format(format!(
-                "{source}: invalid glTF: {}{}",
-                listed.join("; "),
-                if more > 0 {
-                    format!(" (and {more} more)")
-                } else {
-                    String::new()
-                }
-            ))
-        }
-        other => Error::format(format!("{source}: invalid glTF: {other}")),
-    })?;
+    let mut problems = Vec::new();
+    {
+        use gltf::json::validation::Validate;
+        json.validate(&json, gltf::json::Path::new, &mut |path, err| {
+            let path = path();
+            if !is_missing_position_bounds(&path, &err) {
+                problems.push(format!("{path}: {err}"));
+            }
+        });
+    }
+    if !problems.is_empty() {
+        let more = problems.len().saturating_sub(LISTED_PROBLEMS);
+        problems.truncate(LISTED_PROBLEMS);
+        return Err(Error::format(format!(
+            "{source}: invalid glTF: {}{}",
+            problems.join("; "),
+            if more > 0 {
+                format!(" (and {more} more)")
+            } else {
+                String::new()
+            }
+        )));
+    }
+    let doc = gltf::Document::from_json_without_validation(json);
 
     // Plan: what will be drawn, and whether it fits, before any buffer is read.
     let instances = mesh::flatten(&doc, limits, &mut warnings)?;
@@ -209,6 +205,58 @@ pub(crate) fn load(
         warnings,
         bounds,
     })
+}
+
+/// Splits GLB or reads JSON, and deserialises the glTF root.
+fn parse(bytes: &[u8], source: &str) -> Result<(gltf::json::Root, Option<Vec<u8>>)> {
+    let (json, blob, kind) = if glb::is_glb(bytes) {
+        let g = glb::parse(bytes).map_err(|e| Error::format(format!("{source}: {e}")))?;
+        (g.json, g.bin.map(<[u8]>::to_vec), "GLB JSON chunk")
+    } else {
+        (bytes, None, "glTF JSON")
+    };
+    match serde_json::from_slice::<gltf::json::Root>(json) {
+        Ok(root) => Ok((root, blob)),
+        Err(first) => {
+            // glTF 2.0 allows a scene without `nodes`; the `gltf` crate requires the field.
+            if let Ok(mut value) = serde_json::from_slice::<serde_json::Value>(json) {
+                if add_missing_scene_nodes(&mut value) {
+                    if let Ok(root) = serde_json::from_value::<gltf::json::Root>(value) {
+                        return Ok((root, blob));
+                    }
+                }
+            }
+            Err(Error::format(format!("{source}: invalid {kind}: {first}")))
+        }
+    }
+}
+
+/// Gives every scene object without `nodes` an empty list; `true` when something changed.
+fn add_missing_scene_nodes(value: &mut serde_json::Value) -> bool {
+    let Some(scenes) = value.get_mut("scenes").and_then(|s| s.as_array_mut()) else {
+        return false;
+    };
+    let mut changed = false;
+    for scene in scenes {
+        if let Some(obj) = scene.as_object_mut() {
+            if !obj.contains_key("nodes") {
+                obj.insert("nodes".into(), serde_json::Value::Array(Vec::new()));
+                changed = true;
+            }
+        }
+    }
+    changed
+}
+
+/// The spec requires `min`/`max` on POSITION accessors, but bounds are computed from the data
+/// here, so files that omit them (many exporters do) are accepted.
+fn is_missing_position_bounds(
+    path: &gltf::json::Path,
+    err: &gltf::json::validation::Error,
+) -> bool {
+    let p = path.as_str();
+    matches!(err, gltf::json::validation::Error::Missing)
+        && (p.ends_with("[\"POSITION\"].min") || p.ends_with("[\"POSITION\"].max"))
 }
 
 fn primitive_label(instance: &mesh::MeshInstance, primitive: &gltf::Primitive) -> String {

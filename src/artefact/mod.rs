@@ -15,6 +15,7 @@
 mod attributes;
 mod buffers;
 mod extensions;
+mod glb;
 mod instances;
 mod limits;
 mod load;

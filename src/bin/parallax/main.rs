@@ -5,6 +5,8 @@
 
 mod common;
 mod info;
+#[cfg(feature = "gltf")]
+mod inspect;
 
 use clap::{Parser, Subcommand};
 
@@ -20,12 +22,17 @@ struct Cli {
 enum Command {
     /// Version, compiled features and the GPU adapters found.
     Info(info::Args),
+    /// Loads a glTF 2.0 artefact (.gltf/.glb) and prints what it holds, or why it is broken.
+    #[cfg(feature = "gltf")]
+    Inspect(inspect::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Info(args) => info::run(args),
+        #[cfg(feature = "gltf")]
+        Command::Inspect(args) => inspect::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
