@@ -29,7 +29,7 @@ fn node_label(node: &gltf::Node) -> String {
 /// other node's child (with a warning).
 ///
 /// # Errors
-/// `Format` for a node listed as the child of two parents, a cycle (named node by node), or a
+/// `Format` for a cycle (named node by node), a node reached twice (two parents), or a
 /// non-finite transform; `TooLarge` past [`LoadLimits::max_nodes`].
 pub(crate) fn flatten<'a>(
     doc: &'a gltf::Document,
@@ -37,27 +37,17 @@ pub(crate) fn flatten<'a>(
     warnings: &mut Vec<String>,
 ) -> Result<Vec<MeshInstance<'a>>> {
     let nodes: Vec<gltf::Node<'a>> = doc.nodes().collect();
-    let mut parent: Vec<Option<usize>> = vec![None; nodes.len()];
-    for node in &nodes {
-        for child in node.children() {
-            let c = child.index();
-            if let Some(p) = parent[c] {
-                if p != node.index() {
-                    return Err(Error::format(format!(
-                        "node {c} is a child of both node {p} and node {}; glTF node \
-                         hierarchies must be trees",
-                        node.index()
-                    )));
-                }
-            }
-            parent[c] = Some(node.index());
-        }
-    }
     let roots: Vec<usize> = if let Some(scene) = doc.default_scene().or_else(|| doc.scenes().next())
     {
         scene.nodes().map(|n| n.index()).collect()
     } else {
-        let roots: Vec<usize> = (0..nodes.len()).filter(|&i| parent[i].is_none()).collect();
+        let mut is_child = vec![false; nodes.len()];
+        for node in &nodes {
+            for child in node.children() {
+                is_child[child.index()] = true;
+            }
+        }
+        let roots: Vec<usize> = (0..nodes.len()).filter(|&i| !is_child[i]).collect();
         if !nodes.is_empty() {
             warnings.push(format!(
                 "the asset has no scene; drawing its {} root node(s)",
@@ -67,20 +57,59 @@ pub(crate) fn flatten<'a>(
         roots
     };
 
-    let mut visited = vec![false; nodes.len()];
+    enum Step {
+        Enter(usize, Mat4),
+        Leave,
+    }
+    #[derive(Clone, Copy, PartialEq)]
+    enum State {
+        New,
+        OnPath,
+        Done,
+    }
+    let mut state = vec![State::New; nodes.len()];
+    // The chain of nodes from the root to the one being visited, to name a cycle.
+    let mut path: Vec<usize> = Vec::new();
     let mut visits: u64 = 0;
     let mut out = Vec::new();
     // An explicit stack: a deep (or hostile) hierarchy must not overflow the thread's stack.
-    let mut stack: Vec<(usize, Mat4, Option<usize>)> = roots
+    let mut stack: Vec<Step> = roots
         .iter()
         .rev()
-        .map(|&r| (r, Mat4::IDENTITY, None))
+        .map(|&r| Step::Enter(r, Mat4::IDENTITY))
         .collect();
-    while let Some((index, parent_world, from)) = stack.pop() {
-        if visited[index] {
-            return Err(revisit_error(index, from, &parent));
+    while let Some(step) = stack.pop() {
+        let (index, parent_world) = match step {
+            Step::Leave => {
+                if let Some(i) = path.pop() {
+                    state[i] = State::Done;
+                }
+                continue;
+            }
+            Step::Enter(i, w) => (i, w),
+        };
+        match state[index] {
+            State::New => {}
+            State::OnPath => {
+                let start = path.iter().position(|&n| n == index).unwrap_or(0);
+                let mut cycle: Vec<String> = path[start..].iter().map(|n| n.to_string()).collect();
+                cycle.push(index.to_string());
+                return Err(Error::format(format!("node cycle: {}", cycle.join(" → "))));
+            }
+            State::Done => {
+                return Err(Error::format(format!(
+                    "node {index} is reached twice{}; glTF node hierarchies must be trees",
+                    match path.last() {
+                        Some(p) => format!(" (again as a child of node {p})"),
+                        None => " (listed twice as a scene root, or a root that is also a child)"
+                            .to_string(),
+                    }
+                )));
+            }
         }
-        visited[index] = true;
+        state[index] = State::OnPath;
+        path.push(index);
+        stack.push(Step::Leave);
         visits += 1;
         if visits > limits.max_nodes {
             return Err(Error::TooLarge(format!(
@@ -118,42 +147,10 @@ pub(crate) fn flatten<'a>(
         }
         let children: Vec<usize> = node.children().map(|c| c.index()).collect();
         for &c in children.iter().rev() {
-            stack.push((c, world, Some(index)));
+            stack.push(Step::Enter(c, world));
         }
     }
     Ok(out)
-}
-
-/// Explains why `index` was reached a second time: a cycle (listed node by node) or a node that is
-/// both a scene root and a child, or listed twice.
-fn revisit_error(index: usize, from: Option<usize>, parent: &[Option<usize>]) -> Error {
-    let Some(from) = from else {
-        return Error::format(format!(
-            "node {index} is listed more than once as a scene root, or is a scene root and also \
-             a descendant of another root"
-        ));
-    };
-    // Walk up from the node that led here; meeting `index` means a cycle.
-    let mut chain = vec![from];
-    let mut cur = from;
-    while let Some(p) = parent[cur] {
-        if p == index {
-            chain.push(index);
-            chain.reverse();
-            chain.push(index);
-            let path: Vec<String> = chain.iter().map(|n| n.to_string()).collect();
-            return Error::format(format!("node cycle: {}", path.join(" → ")));
-        }
-        if chain.len() > parent.len() {
-            break;
-        }
-        chain.push(p);
-        cur = p;
-    }
-    Error::format(format!(
-        "node {index} is reached twice (as a child of node {from} and as a scene root); glTF \
-         node hierarchies must be trees"
-    ))
 }
 
 /// The node's local transform (matrix, or translation · rotation · scale).
@@ -234,7 +231,7 @@ pub(crate) fn claim(
     let n = primitive.indices().map_or(vertices, |i| i.count() as u64);
     let triangles = match mode {
         Mode::Triangles => {
-            if n % 3 != 0 {
+            if !n.is_multiple_of(3) {
                 return Err(Error::format(format!(
                     "{what}: TRIANGLES with {n} {}, not a multiple of 3",
                     if primitive.indices().is_some() {
@@ -333,7 +330,7 @@ pub(crate) fn build(
             ctx.buffers,
             vertex_count,
             max_indices,
-            &format!("{what}"),
+            what,
             budget,
         )?,
         None => (0..vertex_count as u32).collect(),
