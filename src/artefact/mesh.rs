@@ -325,14 +325,7 @@ pub(crate) fn build(
 
     let max_indices = mul(ctx.limits.max_triangles, 3, "index cap")?;
     let source_indices: Vec<u32> = match primitive.indices() {
-        Some(acc) => read_indices(
-            &acc,
-            ctx.buffers,
-            vertex_count,
-            max_indices,
-            what,
-            budget,
-        )?,
+        Some(acc) => read_indices(&acc, ctx.buffers, vertex_count, max_indices, what, budget)?,
         None => (0..vertex_count as u32).collect(),
     };
     let mut indices = to_triangle_list(primitive.mode(), &source_indices);
