@@ -49,6 +49,7 @@ pub(crate) fn load(
             json.scene = None;
         }
     }
+    check_position_indices(&json)?;
     let mut problems = Vec::new();
     {
         use gltf::json::validation::Validate;
@@ -205,6 +206,28 @@ pub(crate) fn load(
         warnings,
         bounds,
     })
+}
+
+/// The `gltf` crate's validation indexes the POSITION accessor without a bounds check, so a
+/// dangling POSITION index must be caught before it runs.
+fn check_position_indices(json: &gltf::json::Root) -> Result<()> {
+    use gltf::json::validation::Checked;
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = Checked::Valid(gltf::json::mesh::Semantic::Positions);
+            if let Some(index) = primitive.attributes.get(&position) {
+                if index.value() >= json.accessors.len() {
+                    return Err(Error::format(format!(
+                        "mesh {m} primitive {p}: POSITION refers to accessor {}, but there are \
+                         only {} accessors",
+                        index.value(),
+                        json.accessors.len()
+                    )));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Splits GLB or reads JSON, and deserialises the glTF root.
