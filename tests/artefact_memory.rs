@@ -407,6 +407,18 @@ fn corruptions_give_errors_that_name_the_problem() {
             |e| matches!(e, Error::Format(_)),
         ),
         (
+            "image with neither uri nor bufferView (found by the fuzzer)",
+            |j| j["images"][0] = json!({}),
+            "neither a uri nor a bufferView",
+            |e| matches!(e, Error::Format(_)),
+        ),
+        (
+            "dangling POSITION index (found by the fuzzer)",
+            |j| j["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(9),
+            "POSITION refers to accessor 9",
+            |e| matches!(e, Error::Format(_)),
+        ),
+        (
             "image that is not PNG or JPEG",
             |j| j["images"][0] = json!({"bufferView": 0, "mimeType": "image/png"}),
             "image 0",
@@ -424,6 +436,15 @@ fn corruptions_give_errors_that_name_the_problem() {
             "{name}: '{e}' lacks '{needle}'"
         );
     }
+}
+
+#[test]
+fn image_in_a_buffer_view_without_mime_type_is_recognised_by_its_bytes() {
+    // Found by the fuzzer: the `gltf` crate unwraps the missing mimeType.
+    let mut asset = textured_box(0.5, [0.0, 0.0, 0.0]);
+    asset.json["images"][0] = json!({"bufferView": 4});
+    let a = load(&asset.glb()).unwrap();
+    assert_eq!(a.textures[0].image.width, 2);
 }
 
 #[test]

@@ -112,7 +112,7 @@ pub(crate) fn load(
     budget.reserve("the flattened vertex and index data", output_bytes)?;
 
     let buffers = Buffers::load(&doc, blob, base, &mut budget)?;
-    let mut builder = MaterialBuilder::new(&buffers, base, limits);
+    let mut builder = MaterialBuilder::new(&doc, &buffers, base, limits);
     let mut materials: Vec<Material> = Vec::new();
     let mut material_map: HashMap<Option<usize>, usize> = HashMap::new();
     let mut variant_map: HashMap<(usize, u32), usize> = HashMap::new();

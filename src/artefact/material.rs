@@ -226,6 +226,7 @@ impl Material {
 /// Turns glTF materials into [`Material`]s, decoding each image the first time a material uses
 /// it.
 pub(crate) struct MaterialBuilder<'a> {
+    doc: &'a gltf::Document,
     pub(crate) buffers: &'a Buffers,
     pub(crate) base: Option<&'a Path>,
     pub(crate) limits: &'a LoadLimits,
@@ -238,11 +239,13 @@ pub(crate) struct MaterialBuilder<'a> {
 
 impl<'a> MaterialBuilder<'a> {
     pub(crate) fn new(
+        doc: &'a gltf::Document,
         buffers: &'a Buffers,
         base: Option<&'a Path>,
         limits: &'a LoadLimits,
     ) -> Self {
         MaterialBuilder {
+            doc,
             buffers,
             base,
             limits,
@@ -483,14 +486,29 @@ impl<'a> MaterialBuilder<'a> {
         budget: &mut MemoryBudget,
     ) -> Result<TextureImage> {
         let what = format!("{what}: image {}", image.index());
-        let (bytes, name): (std::borrow::Cow<[u8]>, String) = match image.source() {
-            gltf::image::Source::View { view, .. } => (
-                self.buffers.view_bytes(&view)?.into(),
-                image
-                    .name()
-                    .map_or_else(|| format!("bufferView {}", view.index()), str::to_string),
-            ),
-            gltf::image::Source::Uri { uri: u, .. } => {
+        // Read from the JSON: the `gltf` crate's `Image::source` unwraps a missing mimeType.
+        let json = self
+            .doc
+            .as_json()
+            .images
+            .get(image.index())
+            .ok_or_else(|| Error::format(format!("{what} does not exist")))?;
+        let (bytes, name): (std::borrow::Cow<[u8]>, String) = match (&json.buffer_view, &json.uri) {
+            (Some(view_index), _) => {
+                let view = self.doc.views().nth(view_index.value()).ok_or_else(|| {
+                    Error::format(format!(
+                        "{what} refers to bufferView {}, which does not exist",
+                        view_index.value()
+                    ))
+                })?;
+                (
+                    self.buffers.view_bytes(&view)?.into(),
+                    image
+                        .name()
+                        .map_or_else(|| format!("bufferView {}", view.index()), str::to_string),
+                )
+            }
+            (None, Some(u)) => {
                 let name = if u.starts_with("data:") {
                     image.name().unwrap_or("data URI").to_string()
                 } else {
@@ -506,6 +524,11 @@ impl<'a> MaterialBuilder<'a> {
                     }
                 };
                 (bytes.into(), name)
+            }
+            (None, None) => {
+                return Err(Error::format(format!(
+                    "{what} has neither a uri nor a bufferView"
+                )))
             }
         };
         let what = format!("{what} ('{name}')");
