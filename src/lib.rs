@@ -8,6 +8,7 @@
 //!
 //! | module | stage |
 //! |---|---|
+//! | `artefact` (feature `gltf`) | glTF 2.0 artefacts: validated loading, materials, instances |
 //! | [`image`] | image buffers and views, sRGB↔linear, PNG/JPEG/PFM/EXR/HDR I/O |
 //! | [`stereo`] | stereo matching: disparity, confidence and depth from a rectified pair |
 //! | [`camera`] | calibration, disparity ↔ depth, pinhole camera, depth-buffer encodings |
@@ -20,6 +21,8 @@
 
 #![warn(missing_docs)]
 
+#[cfg(feature = "gltf")]
+pub mod artefact;
 pub mod camera;
 pub mod context;
 pub mod error;

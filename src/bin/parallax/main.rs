@@ -11,6 +11,8 @@ mod info;
 mod mesh;
 mod surfaces;
 mod synth;
+#[cfg(feature = "gltf")]
+mod inspect;
 
 use clap::{Parser, Subcommand};
 
@@ -36,6 +38,9 @@ enum Command {
     Eval(eval::Args),
     /// Render a synthetic stereo scene with exact ground truth (Middlebury layout, composites).
     Synth(synth::Args),
+    /// Loads a glTF 2.0 artefact (.gltf/.glb) and prints what it holds, or why it is broken.
+    #[cfg(feature = "gltf")]
+    Inspect(inspect::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -47,6 +52,8 @@ fn main() -> std::process::ExitCode {
         Command::Depth(args) => depth::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Synth(args) => synth::run(args),
+        #[cfg(feature = "gltf")]
+        Command::Inspect(args) => inspect::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
