@@ -4,15 +4,15 @@
 //! message on stderr names what was wrong); 2 bad usage (unknown flag, missing argument).
 
 mod common;
-mod depth_input;
 mod depth;
+mod depth_input;
 mod eval;
 mod info;
+#[cfg(feature = "gltf")]
+mod inspect;
 mod mesh;
 mod surfaces;
 mod synth;
-#[cfg(feature = "gltf")]
-mod inspect;
 
 use clap::{Parser, Subcommand};
 
