@@ -154,10 +154,11 @@ int main(void) {
     CHECK(strstr(report, "\"name\": \"stereo\",\n      \"status\": \"skipped\"") != NULL);
     CHECK(strstr(report, "host depth given") != NULL);
 
-    /* Picks against the analytic points: the floor, and the box's front face. Positions between
-     * the mesh's vertices (which sit at pixel centres): the mesh is exact there for planes. */
-    const float picks[2][2] = {{px + 0.3f, py + 0.7f}, {32.3f, 40.7f}};
-    for (int k = 0; k < 2; k++) {
+    /* Picks against the analytic points: the floor, and the box's front face, between the mesh's
+     * vertices and exactly on them (pixel centres) and on a shared edge, where a ray must not fall
+     * between two triangles. */
+    const float picks[4][2] = {{px + 0.3f, py + 0.7f}, {32.3f, 40.7f}, {px + 0.5f, py + 0.5f}, {px + 1.0f, py + 0.5f}};
+    for (int k = 0; k < 4; k++) {
         float u = picks[k][0], v = picks[k][1], d[3];
         ray_dir(u, v, d);
         float t = depth_at(u, v);

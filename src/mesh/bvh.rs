@@ -4,10 +4,11 @@
 use std::time::Duration;
 
 use glam::{Vec2, Vec3};
-use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::{builder::build_cwbvh, CwBvh};
 use obvhs::ray::RayHit;
 use obvhs::triangle::Triangle;
-use obvhs::BvhBuildParams;
+use obvhs::{Boundable, BvhBuildParams};
 use rayon::prelude::*;
 
 use super::SceneMesh;
@@ -134,8 +135,10 @@ impl Bvh {
 
     fn from_parts(triangles: Vec<Triangle>, corner_normals: Vec<[Vec3; 3]>) -> Bvh {
         let bvh = (!triangles.is_empty()).then(|| {
-            build_cwbvh_from_tris(
-                &triangles,
+            let padded: Vec<PaddedTriangle> =
+                triangles.iter().map(|t| PaddedTriangle(*t)).collect();
+            build_cwbvh(
+                &padded,
                 BvhBuildParams::medium_build(),
                 &mut Duration::default(),
             )
@@ -162,7 +165,7 @@ impl Bvh {
         let r = ray.to_obvhs();
         let mut hit = RayHit::none();
         let found = bvh.ray_traverse(r, &mut hit, |r, id| {
-            self.triangles[bvh.primitive_indices[id] as usize].intersect(r)
+            intersect_closed(&self.triangles[bvh.primitive_indices[id] as usize], r)
         });
         if !found {
             return None;
@@ -208,7 +211,7 @@ impl Bvh {
         }
         let r = ray.to_obvhs();
         !bvh.ray_traverse_miss(r, |r, id| {
-            self.triangles[bvh.primitive_indices[id] as usize].intersect(r)
+            intersect_closed(&self.triangles[bvh.primitive_indices[id] as usize], r)
         })
     }
 
@@ -239,11 +242,97 @@ pub fn pick(bvh: &Bvh, camera: &Camera, pixel: Vec2) -> Option<Hit> {
     bvh.closest_hit(&camera_ray(camera, pixel))
 }
 
+/// Barycentric slack of [`intersect_closed`], relative (a triangle grows by this fraction of itself):
+/// above the f32 rounding of barycentrics for triangles a few metres from the origin.
+const EDGE_SLACK: f32 = 1e-4;
+
+/// A triangle whose bounding box is grown a little. The scene mesh's grid makes boxes that abut
+/// exactly (and flat ones, for planes facing an axis); a ray along a shared boundary can then
+/// fall between two boxes through rounding in the slab test. Growing each box by a fraction of
+/// its coordinates' magnitude closes those gaps at no measurable cost.
+struct PaddedTriangle(Triangle);
+
+impl Boundable for PaddedTriangle {
+    fn aabb(&self) -> Aabb {
+        let b = self.0.aabb();
+        let scale = b.min.abs().max(b.max.abs()).max_element().max(1e-3);
+        let pad = glam::Vec3A::splat(scale * 1e-5);
+        Aabb::new(b.min - pad, b.max + pad)
+    }
+}
+
+/// Möller–Trumbore with closed, slightly widened edges: the distance along `ray` to the triangle,
+/// or infinity.
+///
+/// obvhs' own test rejects barycentrics of −0.0 by their sign bit, so a ray through a shared vertex
+/// or along a shared edge can miss *both* triangles. The scene mesh puts its vertices exactly at
+/// pixel centres, where hosts pick, so edges must be closed: a tiny overlap (a double hit on an
+/// edge is harmless for closest-hit and any-hit) is far better than a hole.
+fn intersect_closed(tri: &Triangle, ray: &obvhs::ray::Ray) -> f32 {
+    let e1 = tri.v1 - tri.v0;
+    let e2 = tri.v2 - tri.v0;
+    let p = ray.direction.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 || !det.is_finite() {
+        return f32::INFINITY;
+    }
+    let inv_det = 1.0 / det;
+    let s = ray.origin - tri.v0;
+    let u = s.dot(p) * inv_det;
+    let q = s.cross(e1);
+    let v = ray.direction.dot(q) * inv_det;
+    if u < -EDGE_SLACK || v < -EDGE_SLACK || u + v > 1.0 + EDGE_SLACK {
+        return f32::INFINITY;
+    }
+    let t = e2.dot(q) * inv_det;
+    if t >= ray.tmin && t <= ray.tmax {
+        t
+    } else {
+        f32::INFINITY
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::image::Raster;
     use crate::mesh::MeshOptions;
+
+    /// Rays through shared vertices and along shared edges (exactly where the grid puts them:
+    /// pixel centres and half-way between) must hit; obvhs' own test misses some of them.
+    #[test]
+    fn picks_at_vertices_and_edges_never_fall_through() {
+        let camera = Camera::from_focal(60.0, 64, 48).unwrap();
+        for (name, depth) in [
+            ("fronto-parallel wall", Raster::filled(64, 48, 8.0)),
+            (
+                "slanted plane",
+                Raster::from_fn(64, 48, |x, y| 3.0 + 0.02 * x as f32 + 0.05 * y as f32),
+            ),
+        ] {
+            let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default()).unwrap();
+            let bvh = Bvh::new(&mesh);
+            let mut misses = Vec::new();
+            // The mesh spans pixel centres 0.5 … w − 0.5; stay one pixel inside its border, where
+            // a ray through the outermost vertex may round either way.
+            for y in 1..46 {
+                for x in 1..62 {
+                    for (dx, dy) in [(0.5, 0.5), (1.0, 1.0), (1.0, 0.5), (0.5, 1.0)] {
+                        let pixel = Vec2::new(x as f32 + dx, y as f32 + dy);
+                        if pick(&bvh, &camera, pixel).is_none() {
+                            misses.push(pixel);
+                        }
+                    }
+                }
+            }
+            assert!(
+                misses.is_empty(),
+                "{name}: {} picks fell through, e.g. {:?}",
+                misses.len(),
+                &misses[..misses.len().min(5)]
+            );
+        }
+    }
 
     #[test]
     fn bvh_is_shareable_between_threads() {
