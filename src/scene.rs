@@ -123,6 +123,8 @@ struct StereoSettings {
 mod artefacts;
 mod reconstruction;
 
+#[cfg(all(test, feature = "gltf"))]
+pub(crate) use artefacts::box_glb;
 #[cfg(feature = "gltf")]
 pub use artefacts::ArtefactBounds;
 pub use reconstruction::HostDepth;
