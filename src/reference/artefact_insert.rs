@@ -58,7 +58,7 @@ pub fn insert_artefact(
         }
         Some(s) => {
             let largest = bounds.size().max_element();
-            if !(largest > 0.0) {
+            if !(largest.is_finite() && largest > 0.0) {
                 return Err(Error::invalid(format!(
                     "{}: the asset has no extent, so it cannot be scaled to {s} m",
                     artefact.source
