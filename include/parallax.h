@@ -349,6 +349,122 @@ typedef struct plx_stereo_options {
 extern "C" {
 #endif // __cplusplus
 
+// Loads a glTF 2.0 file (`.gltf` with external or embedded buffers, or `.glb`) and places it in
+// the scene with `transform` (16 floats, column-major, asset space → world, metres; NULL =
+// identity): visible, casting and receiving shadows. External buffers and images are read only
+// from the file's folder and below. A file this scene already loaded and that is unchanged on
+// disk is not read again: the new artefact shares its data. The new id goes to `*out_id`.
+// The loader's warnings: `plx_scene_artefact_warnings`, and the report (`plx_scene_report`).
+//
+// Errors: `NULL_ARGUMENT`; `INVALID_ARGUMENT` (non-finite transform, a URI outside the asset's
+// folder); `IO` (the file, or a buffer or image it names, cannot be read); `FORMAT` (malformed
+// file: the message names the accessor, index, node or URI); `UNSUPPORTED` (a required extension
+// such as Draco; a build without glTF support); `TOO_LARGE` (over the load caps). On error the
+// scene is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `path` is a NUL-terminated string; `transform` is NULL or points to 16
+// readable floats; `out_id` is writable.
+enum plx_status plx_scene_add_artefact_path(struct plx_scene *scene,
+                                            const char *path,
+                                            const float *transform,
+                                            uint32_t *out_id);
+
+// Loads a GLB, or `.gltf` JSON whose buffers and images are all embedded (`data:` URIs), from
+// `len` bytes of memory (copied as needed; the caller may free them afterwards) and places it
+// like `plx_scene_add_artefact_path`. A URI naming an external file is refused
+// (`INVALID_ARGUMENT`). Other errors as `plx_scene_add_artefact_path`. On error the scene is
+// unchanged.
+//
+// # Safety
+// `scene` is a live scene; `bytes` points to `len` readable bytes (may be NULL when `len` is 0);
+// `transform` is NULL or points to 16 readable floats; `out_id` is writable.
+enum plx_status plx_scene_add_artefact_memory(struct plx_scene *scene,
+                                              const uint8_t *bytes,
+                                              size_t len,
+                                              const float *transform,
+                                              uint32_t *out_id);
+
+// Moves artefact `id`: `transform` is 16 floats, column-major, asset space → world, metres.
+// Depth, mesh and surfaces are not recomputed for it. Errors: `NULL_ARGUMENT`;
+// `INVALID_ARGUMENT` (unknown id, non-finite transform). On error nothing changes.
+//
+// # Safety
+// `scene` is a live scene; `transform` points to 16 readable floats.
+enum plx_status plx_scene_set_artefact_transform(struct plx_scene *scene,
+                                                 uint32_t id,
+                                                 const float *transform);
+
+// Sets artefact `id`'s flags, each 0 or 1: `visible` (drawn at all), `casts_shadow` (darkens the
+// photo and other artefacts), `receives_shadow` (darkened by other artefacts). New artefacts
+// have all three set. Errors: `INVALID_ARGUMENT` (unknown id, a flag other than 0 or 1). On
+// error nothing changes.
+//
+// # Safety
+// `scene` is a live scene.
+enum plx_status plx_scene_set_artefact_flags(struct plx_scene *scene,
+                                             uint32_t id,
+                                             uint32_t visible,
+                                             uint32_t casts_shadow,
+                                             uint32_t receives_shadow);
+
+// Removes artefact `id` (its data is freed once no other artefact shares it). Ids are never
+// reused. Errors: `INVALID_ARGUMENT` for an unknown or already removed id.
+//
+// # Safety
+// `scene` is a live scene.
+enum plx_status plx_scene_remove_artefact(struct plx_scene *scene, uint32_t id);
+
+// Bounding boxes of artefact `id`, metres: in its own asset space (`local_min`, `local_max`) and
+// in the world after its transform (`world_min`, `world_max`: the box holding the eight
+// transformed corners). Each output is 3 floats (x, y, z); any may be NULL when not wanted. An
+// artefact without geometry has the empty box at its origin. Errors: `INVALID_ARGUMENT` for an
+// unknown id.
+//
+// # Safety
+// `scene` is a live scene; each output is NULL or points to 3 writable floats.
+enum plx_status plx_artefact_bounds(struct plx_scene *scene,
+                                    uint32_t id,
+                                    float *local_min,
+                                    float *local_max,
+                                    float *world_min,
+                                    float *world_max);
+
+// Stands artefact `id` on the scene surface seen at image position (`x`, `y`) (continuous
+// pixels, like `plx_scene_place`) at its real size: the bottom centre of its bounding box on the
+// surface, its largest side `size_m` metres, turned by `yaw_deg` degrees about the up axis. Sets
+// the artefact's transform and, when `out_transform` is not NULL, writes it there (16 floats,
+// column-major). Needs depth (computed if needed). Errors: `NOT_AVAILABLE` without depth;
+// `INVALID_ARGUMENT` (unknown id, an artefact without geometry, a pixel with no surface, a size
+// that is not finite and > 0, a non-finite yaw). On error the transform is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `out_transform` is NULL or points to 16 writable floats.
+enum plx_status plx_scene_place_artefact(struct plx_scene *scene,
+                                         uint32_t id,
+                                         float x,
+                                         float y,
+                                         float size_m,
+                                         float yaw_deg,
+                                         float *out_transform);
+
+// The warnings the loader raised for artefact `id` (what it repaired or ignored: generated
+// normals, an unsupported optional extension, skipped points and lines, …), one per line,
+// copied into `buf` like `plx_last_error_message` (truncated to `len - 1` bytes plus a NUL; the
+// full size including the NUL in `*needed` when not NULL). `*count` (when not NULL) receives the
+// number of warnings; "" and 0 when there are none. Errors: `NULL_ARGUMENT` (`buf` NULL with
+// `len > 0`); `INVALID_ARGUMENT` for an unknown id.
+//
+// # Safety
+// `scene` is a live scene; `buf` points to `len` writable bytes (may be NULL when `len` is 0);
+// `needed` and `count` are NULL or writable.
+enum plx_status plx_scene_artefact_warnings(struct plx_scene *scene,
+                                            uint32_t id,
+                                            char *buf,
+                                            size_t len,
+                                            size_t *needed,
+                                            size_t *count);
+
 // Fills `options` with the defaults and its `size`.
 //
 // # Safety

@@ -119,8 +119,14 @@ struct StereoSettings {
     max_disparity: Option<u32>,
 }
 
+#[cfg(feature = "gltf")]
+mod artefacts;
 mod reconstruction;
 
+#[cfg(all(test, feature = "gltf"))]
+pub(crate) use artefacts::box_glb;
+#[cfg(feature = "gltf")]
+pub use artefacts::ArtefactBounds;
 pub use reconstruction::HostDepth;
 
 /// A photo's reconstruction and everything inserted into it.
@@ -147,6 +153,8 @@ pub struct Scene {
     mesh: Product<crate::mesh::SceneMesh>,
     bvh: Product<crate::mesh::Bvh>,
     surfaces: Product<crate::mesh::Surfaces>,
+    #[cfg(feature = "gltf")]
+    artefacts: artefacts::SceneArtefacts,
     last_trace: Trace,
 }
 
@@ -172,6 +180,8 @@ impl Scene {
             mesh: Product::default(),
             bvh: Product::default(),
             surfaces: Product::default(),
+            #[cfg(feature = "gltf")]
+            artefacts: artefacts::SceneArtefacts::default(),
             last_trace: {
                 let mut t = Trace::new();
                 t.finish();

@@ -5,7 +5,8 @@
 //! - `PARALLAX_FFI_WRAPPER="valgrind --error-exitcode=1 --leak-check=full --errors-for-leak-kinds=definite"`
 //! - `PARALLAX_FFI_CFLAGS="-fsanitize=address,undefined -fno-omit-frame-pointer"`
 //!
-//! `CC` picks the compiler (default `cc`).
+//! `CC` picks the compiler (default `cc`). The programs get `PARALLAX_DATA`: the shared test data
+//! folder as an absolute path, when it exists.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -56,6 +57,16 @@ fn compile(source: &Path, output: &Path, lib_dir: &Path) {
     );
 }
 
+/// `PARALLAX_DATA`, else `../shared/data` next to the crate, made absolute; `None` when absent.
+fn shared_data_dir() -> Option<PathBuf> {
+    std::env::var_os("PARALLAX_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"))
+        .canonicalize()
+        .ok()
+        .filter(|p| p.is_dir())
+}
+
 #[test]
 fn c_programs_pass() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -95,6 +106,12 @@ fn c_programs_pass() {
         // cargo's LD_LIBRARY_PATH also lists target/<profile>, whose libparallax may be stale; the
         // program's rpath names the one this run built.
         cmd.env_remove("LD_LIBRARY_PATH");
+        // The shared test data, as an absolute path; C tests skip their parts that need it when
+        // the variable is absent.
+        match shared_data_dir() {
+            Some(dir) => cmd.env("PARALLAX_DATA", dir),
+            None => cmd.env_remove("PARALLAX_DATA"),
+        };
         let result = cmd
             .output()
             .unwrap_or_else(|e| panic!("cannot run {name}: {e}"));

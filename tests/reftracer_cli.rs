@@ -89,7 +89,10 @@ fn synth_rejects_bad_input_with_a_message() {
     let dir = tempfile::tempdir().unwrap();
     let cases: [(&[&str], &str); 4] = [
         (&["--scene", "kitchen"], "built-in scene"),
-        (&["--scene", "room", "--insert", "model.glb@0,0,0"], "glTF"),
+        (
+            &["--scene", "room", "--insert", "model.glb@0,0,0"],
+            "model.glb",
+        ),
         (
             &["--scene", "room", "--insert", "sphere@0,0"],
             "3 to 5 numbers",

@@ -14,6 +14,7 @@
 
 #![allow(non_camel_case_types)]
 
+pub mod artefact;
 mod boundary;
 pub mod context;
 mod handle;

@@ -11,11 +11,14 @@
 //! - [`render`]: both views by path tracing (next-event estimation with multiple importance
 //!   sampling, Russian roulette, obvhs CWBVH), plus the ground truth → [`Images`], which
 //!   [`Images::write_middlebury_layout`] writes as a Middlebury folder.
-//! - [`render_composite`]: the left view with and without inserted objects → [`Composite`].
+//! - [`render_composite`]: the left view with and without inserted objects → [`Composite`];
+//!   `insert_artefact` (feature `gltf`) turns a loaded glTF artefact into such objects.
 //!
 //! Images are deterministic: the same scene, options and sample count give the same pixels
 //! whatever the number of threads (each pixel sample has its own seeded generator).
 
+#[cfg(feature = "gltf")]
+mod artefact_insert;
 mod brdf;
 mod builtin;
 mod composite;
@@ -28,6 +31,8 @@ mod sampling;
 mod shapes;
 mod textures;
 
+#[cfg(feature = "gltf")]
+pub use artefact_insert::insert_artefact;
 pub use builtin::{builtin, BUILTIN_SCENES};
 pub use composite::{insert_shape, render_composite, Composite, INSERT_SHAPES};
 pub use description::{

@@ -39,15 +39,17 @@ pub struct Args {
     seed: u64,
     /// Insert an object and also write the ground-truth composite: SHAPE@x,y,z[,scale[,yaw_deg]]
     /// with SHAPE one of sphere, box, cylinder, torus (its lowest point rests on x,y,z, world
-    /// metres) or an object description FILE.json (its origin goes to x,y,z). Repeatable.
+    /// metres), a glTF model FILE.glb or FILE.gltf (its lowest point rests on x,y,z, centred over
+    /// it; scale = its largest extent in metres, default its own size; textures enter by their
+    /// mean colour) or an object description FILE.json (its origin goes to x,y,z). Repeatable.
     #[arg(long, value_name = "SHAPE_OR_FILE@x,y,z[,scale[,yaw]]")]
     insert: Vec<String>,
     #[command(flatten)]
     common: CommonArgs,
 }
 
-/// Parses one `--insert` value.
-fn parse_insert(spec: &str) -> parallax::Result<Object> {
+/// Parses one `--insert` value into the objects it inserts (a glTF model gives one per primitive).
+fn parse_insert(spec: &str) -> parallax::Result<Vec<Object>> {
     let (what, place) = spec.rsplit_once('@').ok_or_else(|| {
         Error::invalid(format!(
             "--insert {spec:?}: expected SHAPE_OR_FILE@x,y,z[,scale[,yaw]]"
@@ -68,15 +70,12 @@ fn parse_insert(spec: &str) -> parallax::Result<Object> {
         )));
     }
     let position = [numbers[0], numbers[1], numbers[2]];
-    let scale = numbers.get(3).copied().unwrap_or(1.0);
+    let size = numbers.get(3).copied();
+    let scale = size.unwrap_or(1.0);
     let yaw = numbers.get(4).copied().unwrap_or(0.0);
     let lower = what.to_ascii_lowercase();
     if lower.ends_with(".glb") || lower.ends_with(".gltf") {
-        return Err(Error::Unsupported(format!(
-            "--insert {what}: glTF objects are not available to the reference renderer yet; \
-             use a built-in shape ({}) or an object description .json",
-            reference::INSERT_SHAPES.join(", ")
-        )));
+        return insert_gltf(what, position, size, yaw);
     }
     if lower.ends_with(".json") {
         let text = std::fs::read_to_string(what).map_err(|e| Error::io(what, e))?;
@@ -88,9 +87,37 @@ fn parse_insert(spec: &str) -> parallax::Result<Object> {
             rotation_deg: [yaw, 0.0, 0.0],
             scale: object.transform.scale.map(|s| s * scale),
         };
-        return Ok(object);
+        return Ok(vec![object]);
     }
-    reference::insert_shape(what, position, scale, yaw)
+    Ok(vec![reference::insert_shape(what, position, scale, yaw)?])
+}
+
+/// The objects of a glTF model's primitives (see [`reference::insert_artefact`]).
+#[cfg(feature = "gltf")]
+fn insert_gltf(
+    path: &str,
+    position: [f32; 3],
+    size: Option<f32>,
+    yaw: f32,
+) -> parallax::Result<Vec<Object>> {
+    use parallax::artefact::{Artefact, LoadOptions};
+    let artefact = Artefact::from_path(path, &LoadOptions::default())?;
+    for w in &artefact.warnings {
+        eprintln!("parallax: {path}: {w}");
+    }
+    reference::insert_artefact(&artefact, position, size, yaw)
+}
+
+#[cfg(not(feature = "gltf"))]
+fn insert_gltf(
+    path: &str,
+    _position: [f32; 3],
+    _size: Option<f32>,
+    _yaw: f32,
+) -> parallax::Result<Vec<Object>> {
+    Err(Error::Unsupported(format!(
+        "--insert {path}: this build has no glTF support (cargo feature \"gltf\")"
+    )))
 }
 
 /// Renders the scene and writes the ground truth (see the module documentation).
@@ -111,7 +138,10 @@ pub fn run(args: Args) -> parallax::Result<()> {
         .insert
         .iter()
         .map(|s| parse_insert(s))
-        .collect::<parallax::Result<_>>()?;
+        .collect::<parallax::Result<Vec<_>>>()?
+        .into_iter()
+        .flatten()
+        .collect();
     let samples = match (args.spp, args.seconds) {
         (_, Some(s)) if !(s.is_finite() && s > 0.0 && s < 1e7) => {
             return Err(Error::invalid(format!(
