@@ -15,6 +15,9 @@ use parallax::{Error, Result};
 
 use crate::common::CommonArgs;
 
+#[path = "eval_reconstruction.rs"]
+mod reconstruction;
+
 /// Arguments of `parallax eval`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -26,6 +29,8 @@ pub struct Args {
 enum What {
     /// Stereo matching against Middlebury ground truth.
     Stereo(StereoArgs),
+    /// Depth, mesh, normals, planes, up and placement against synthetic scenes' exact truth.
+    Reconstruction(reconstruction::ReconstructionArgs),
 }
 
 /// Arguments of `parallax eval stereo`.
@@ -53,6 +58,7 @@ pub struct StereoArgs {
 pub fn run(args: Args) -> Result<()> {
     match args.what {
         What::Stereo(a) => run_stereo(a),
+        What::Reconstruction(a) => reconstruction::run(a),
     }
 }
 

@@ -1,0 +1,79 @@
+//! `parallax eval reconstruction` on `room` at a tiny size: the table has every column, the JSON
+//! holds finite figures in their ranges, and the true floor and table were found in the render.
+
+use std::process::Command;
+
+const COLUMNS: [&str; 11] = [
+    "scene",
+    "depth rel. err. median / p90",
+    "mesh rel. err. median / p90",
+    "mesh coverage",
+    "floor normal err. median (°)",
+    "table normal err. median (°)",
+    "floor plane normal err. (°)",
+    "table plane normal err. (°)",
+    "up err. (°)",
+    "floor placement height err. (% dist.)",
+    "table placement height err. (% dist.)",
+];
+
+#[test]
+fn room_at_tiny_size_gives_the_table_and_finite_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_parallax"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .args(["eval", "reconstruction", "--scene", "room"])
+        .args(["--width", "96", "--height", "72", "--spp", "2", "--quiet"])
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let header = format!("| {} |", COLUMNS.join(" | "));
+    assert!(stdout.contains(&header), "no table header in:\n{stdout}");
+    let md = std::fs::read_to_string(dir.path().join("reconstruction.md")).unwrap();
+    assert!(md.contains(&header));
+    let row = md.lines().find(|l| l.starts_with("| room |")).unwrap();
+    assert_eq!(row.matches('|').count(), COLUMNS.len() + 1, "{row}");
+
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("reconstruction.json")).unwrap(),
+    )
+    .unwrap();
+    let r = &json[0];
+    assert_eq!(r["scene"], "room");
+    for key in ["depth_error", "mesh_error"] {
+        let (m, p) = (
+            r[key]["median"].as_f64().unwrap(),
+            r[key]["p90"].as_f64().unwrap(),
+        );
+        assert!(
+            m.is_finite() && p.is_finite() && 0.0 <= m && m <= p,
+            "{key}: {r}"
+        );
+    }
+    let coverage = r["mesh_coverage"].as_f64().unwrap();
+    assert!(coverage > 0.0 && coverage <= 1.0, "{r}");
+    let up = r["up_error_deg"].as_f64().unwrap();
+    assert!((0.0..=180.0).contains(&up), "{r}");
+    // The room has a floor and a table top; both are seen from the rig.
+    let planes = r["planes"].as_array().unwrap();
+    let names: Vec<&str> = planes
+        .iter()
+        .map(|p| p["plane"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["floor", "table"]);
+    for p in planes {
+        assert!(p["pixels"].as_u64().unwrap() > 0, "{p}");
+        let n = p["normal_error_deg"]["median"].as_f64().unwrap();
+        assert!((0.0..=180.0).contains(&n), "{p}");
+        if let Some(h) = p["placement_height_error"].as_f64() {
+            assert!(h.is_finite(), "{p}");
+        }
+    }
+}
