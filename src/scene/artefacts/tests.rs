@@ -1,12 +1,13 @@
 use std::sync::Arc;
 
+use crate::scene::test_support::shifted_pair;
 use glam::{Mat4, Vec2, Vec3};
 
 use super::box_glb;
 use crate::camera::Camera;
 use crate::context::{Context, ContextOptions};
 use crate::error::Error;
-use crate::image::{Image, PixelFormat, Raster};
+use crate::image::Raster;
 use crate::scene::Scene;
 use crate::stereo::StereoOptions;
 use crate::trace::StageStatus;
@@ -113,24 +114,6 @@ fn edits_change_the_artefact_version_and_unknown_ids_fail_by_name() {
         .add_artefact_path("/nonexistent/parallax/box.glb", Mat4::IDENTITY)
         .unwrap_err();
     assert!(matches!(e, Error::Io { .. }), "{e}");
-}
-
-/// A random texture, and the right view seeing it `shift` px further left (disparity `shift`).
-fn shifted_pair(w: u32, h: u32, shift: u32) -> (Image, Image) {
-    let texture = |x: i64, y: i64| -> u8 {
-        let mut v = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) as u64;
-        v ^= v >> 13;
-        v = v.wrapping_mul(0x5bd1_e995);
-        (v >> 24) as u8
-    };
-    let make = |offset: i64| {
-        let data = (0..h as i64)
-            .flat_map(|y| (0..w as i64).map(move |x| (x, y)))
-            .map(|(x, y)| texture(x + offset, y))
-            .collect();
-        Image::from_bytes(w, h, PixelFormat::Gray8, data).unwrap()
-    };
-    (make(0), make(shift as i64))
 }
 
 #[test]
