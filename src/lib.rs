@@ -13,6 +13,7 @@
 //! | [`stereo`] | stereo matching: disparity, confidence and depth from a rectified pair |
 //! | [`camera`] | calibration, disparity ↔ depth, pinhole camera, depth-buffer encodings |
 //! | [`mesh`] | scene mesh from depth, ray queries (BVH), support surfaces, placement, export |
+//! | [`light`] | illumination: shadow mask, light sources, environment, SH9, prefiltering |
 //! | [`context`] | what scenes share: size caps, the lazily opened GPU |
 //! | [`reference`] | CPU path tracer and synthetic stereo scenes with exact ground truth |
 //! | [`scene`] | the demand-driven pipeline with cached products and a [`trace::Trace`] |
@@ -28,6 +29,7 @@ pub mod context;
 pub mod error;
 pub mod ffi;
 pub mod image;
+pub mod light;
 pub mod mesh;
 pub mod reference;
 #[cfg(feature = "gpu")]
