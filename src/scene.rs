@@ -121,12 +121,14 @@ struct StereoSettings {
 
 #[cfg(feature = "gltf")]
 mod artefacts;
+mod lighting;
 mod reconstruction;
 
 #[cfg(all(test, feature = "gltf"))]
 pub(crate) use artefacts::box_glb;
 #[cfg(feature = "gltf")]
 pub use artefacts::ArtefactBounds;
+pub use lighting::MAX_LIGHTS;
 pub use reconstruction::HostDepth;
 
 /// A photo's reconstruction and everything inserted into it.
@@ -155,6 +157,7 @@ pub struct Scene {
     surfaces: Product<crate::mesh::Surfaces>,
     #[cfg(feature = "gltf")]
     artefacts: artefacts::SceneArtefacts,
+    lighting: lighting::SceneLighting,
     last_trace: Trace,
 }
 
@@ -182,6 +185,7 @@ impl Scene {
             surfaces: Product::default(),
             #[cfg(feature = "gltf")]
             artefacts: artefacts::SceneArtefacts::default(),
+            lighting: lighting::SceneLighting::default(),
             last_trace: {
                 let mut t = Trace::new();
                 t.finish();

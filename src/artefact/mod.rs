@@ -14,6 +14,7 @@
 
 mod attributes;
 mod buffers;
+pub mod builtin;
 mod extensions;
 mod glb;
 mod instances;
@@ -27,6 +28,7 @@ use std::path::Path;
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
 
+pub use builtin::{builtin_glb, BUILTIN_ARTEFACTS};
 pub use extensions::SUPPORTED_EXTENSIONS;
 pub use instances::{ArtefactId, ArtefactSet, Instance};
 pub use limits::LoadLimits;
