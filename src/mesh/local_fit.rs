@@ -12,10 +12,10 @@
 //!
 //! ## The fit
 //! `σ_w` is estimated once per depth map ([`inverse_depth_noise`]). Each sample starts from the
-//! better (more inliers within a 5×5 window) of two planes through it: constant inverse depth, or
-//! the plane of its mesh triangles. Then, for radii 2, 4, 8, 16, 32 pixels (windows thinned to at
-//! most 17×17 samples), iteratively reweighted least squares with Tukey's biweight on the residual
-//! in units of `σ_w` refits the plane. The weights are measured against the sample's own plane, so
+//! best supported (within a 5×5 window) of three planes through it: constant inverse depth, the
+//! least-squares plane of its 3×3, or the plane of its mesh triangles. Then, for radii 2, 4, 8,
+//! 16, 32 pixels (windows thinned to at most 17×17 samples), iteratively reweighted least squares
+//! with Tukey's biweight on the residual in units of `σ_w` refits the plane. The weights are measured against the sample's own plane, so
 //! a neighbour across a depth discontinuity (or a stereo outlier) gets weight 0: the fit is
 //! edge-aware without a separate edge test. Growth stops once the normal's standard error (from
 //! the fit's covariance) is below [`TARGET_NORMAL_ERROR_DEG`]; on exact depth that is at once, so
@@ -31,8 +31,9 @@ use crate::image::Raster;
 const RADII: [i64; 5] = [2, 4, 8, 16, 32];
 /// A window of radius `r` is sampled every `max(1, r / SUBSAMPLE_DIVISOR)` pixels (≤ 17×17 samples).
 const SUBSAMPLE_DIVISOR: i64 = 8;
-/// Reweighting rounds per radius.
-const ROUNDS_PER_RADIUS: usize = 2;
+/// Reweighting rounds at the first radius (where the start may be far off); one round at each
+/// larger radius, whose weights come from the previous radius' plane.
+const FIRST_RADIUS_ROUNDS: usize = 2;
 /// Growth stops once the normal's standard error is below this, degrees.
 pub(crate) const TARGET_NORMAL_ERROR_DEG: f64 = 1.0;
 /// Tukey's biweight cut-off in units of `σ_w` (95 % efficiency under Gaussian noise).
@@ -44,7 +45,7 @@ const MIN_WEIGHT: f64 = 8.0;
 const MIN_RELATIVE_NOISE: f64 = 1e-4;
 /// Spacing of the second differences the noise is estimated from, pixels. Stereo noise is
 /// correlated over a few pixels (aggregation windows), which a spacing of 1 would underrate.
-const NOISE_SPACING: usize = 3;
+pub(crate) const NOISE_SPACING: usize = 3;
 
 /// The inverse-depth map `w = 1/Z` (1/m) of a depth map, NaN where depth is missing.
 pub(crate) fn inverse_depth(depth: &Raster<f32>) -> Raster<f64> {
@@ -322,8 +323,9 @@ impl<'a> LocalFitter<'a> {
             }
         }
         let mut fitted = None;
-        'radii: for &r in &RADII {
-            for _ in 0..ROUNDS_PER_RADIUS {
+        'radii: for (k, &r) in RADII.iter().enumerate() {
+            let rounds = if k == 0 { FIRST_RADIUS_ROUNDS } else { 1 };
+            for _ in 0..rounds {
                 match self.refit(x0, y0, r, Some(&plane), MIN_WEIGHT) {
                     Some((p, inv)) => {
                         plane = p;
