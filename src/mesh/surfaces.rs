@@ -21,8 +21,9 @@
 //! least squares of `w` over the pixel coordinates, which weights every point by its true
 //! precision (a principal-axis fit in 3D lets the noisiest, farthest points dominate).
 //!
-//! "Up" is the inlier-weighted mean normal of the near-horizontal planes (normals within 50° of the
-//! camera's +Y, or of −Y for ceilings) that agree within 10° with the largest of them; with no such
+//! "Up" is the inlier-weighted mean normal of the near-horizontal planes (normals within 35° of the
+//! camera's +Y, or of −Y for ceilings: the gravity prior of a camera pitched or rolled by less than
+//! that) that agree within 10° with the direction most of their points agree with; with no such
 //! plane it falls back to the camera's +Y (the image's "up", i.e. −image-y).
 
 use glam::{DVec3, Vec2, Vec3};
@@ -34,7 +35,8 @@ use crate::error::{Error, Result};
 /// How surfaces are searched for.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SurfaceOptions {
-    /// At most this many surfaces, largest first. Default 8.
+    /// At most this many surfaces, largest first. Default 16 (a cluttered room has a dozen planes
+    /// larger than its table top: walls, floor pieces, box sides).
     pub max_surfaces: usize,
     /// A point is on a plane when its distance is below this fraction of its depth (or within the
     /// depth noise measured on the mesh, when that is larger: see the module docs). Default 0.01.
@@ -54,7 +56,7 @@ pub struct SurfaceOptions {
 impl Default for SurfaceOptions {
     fn default() -> Self {
         SurfaceOptions {
-            max_surfaces: 8,
+            max_surfaces: 16,
             distance_tolerance: 0.01,
             normal_tolerance_deg: 15.0,
             min_fraction: 0.01,
@@ -525,26 +527,39 @@ impl ImageGrid {
     }
 }
 
+/// Largest angle between a plane's (or a ceiling's flipped) normal and the camera's +Y for it to
+/// count towards "up": the gravity prior, i.e. the camera pitched or rolled by at most this much.
+const MAX_UP_TILT_DEG: f32 = 35.0;
+
 fn estimate_up(found: &[(Plane, Vec<usize>)]) -> (Vec3, UpSource) {
-    let cos50 = 50f32.to_radians().cos();
+    let cos_gate = MAX_UP_TILT_DEG.to_radians().cos();
     // Candidate up directions: normals of near-horizontal planes, ceilings flipped.
     let candidates: Vec<(Vec3, usize)> = found
         .iter()
         .filter_map(|(plane, piece)| {
             let n = plane.normal;
-            if n.y >= cos50 {
+            if n.y >= cos_gate {
                 Some((n, piece.len()))
-            } else if -n.y >= cos50 {
+            } else if -n.y >= cos_gate {
                 Some((-n, piece.len()))
             } else {
                 None
             }
         })
         .collect();
-    let Some(&(reference, _)) = candidates.iter().max_by_key(|c| c.1) else {
+    let cos10 = 10f32.to_radians().cos();
+    // The reference is the direction most of the horizontal area agrees with (floor and table
+    // tops together outvote one large spurious plane).
+    let agreeing = |r: Vec3| {
+        candidates
+            .iter()
+            .filter(|(n, _)| n.dot(r) >= cos10)
+            .map(|(_, w)| *w)
+            .sum::<usize>()
+    };
+    let Some(&(reference, _)) = candidates.iter().max_by_key(|(n, w)| (agreeing(*n), *w)) else {
         return (Vec3::Y, UpSource::CameraFallback);
     };
-    let cos10 = 10f32.to_radians().cos();
     let sum: Vec3 = candidates
         .iter()
         .filter(|(n, _)| n.dot(reference) >= cos10)
