@@ -210,10 +210,13 @@ pub fn detect_surfaces(
     let mut found: Vec<(Plane, Vec<usize>)> = Vec::new();
     let grid = ImageGrid::new(camera);
     // Hypotheses whose best piece was too small are dropped from the pool (so the next round
-    // looks elsewhere); after this many in a row the pool holds no more surfaces.
+    // looks elsewhere); after MAX_MISSES in a row the pool holds no more surfaces.
     let mut misses = 0;
 
-    while found.len() < options.max_surfaces && remaining.len() >= min_inliers && misses < 8 {
+    while found.len() < options.max_surfaces
+        && remaining.len() >= min_inliers
+        && misses < MAX_MISSES
+    {
         let Some(mut plane) = best_hypothesis(&points, &remaining, options, &tolerance, &mut rng)
         else {
             break;
@@ -309,6 +312,15 @@ impl Plane {
     }
 }
 
+/// Spacing (in grid steps) of the second differences the plane tolerance's noise is measured
+/// with: stereo errors are correlated over several pixels, and a point's offset from a plane
+/// includes the slow part that short differences cancel.
+const SURFACE_NOISE_SPACING: usize = 8;
+
+/// Consecutive hypotheses whose largest connected piece is too small after which the search
+/// ends (each drops its inliers from the pool, so the next one looks elsewhere).
+const MAX_MISSES: usize = 24;
+
 /// How many standard deviations of inverse-depth noise a point may lie off its plane.
 const INLIER_SIGMAS: f64 = 3.0;
 
@@ -356,7 +368,7 @@ fn inverse_depth_noise_of(mesh: &SceneMesh, camera: &Camera) -> Option<f64> {
     }
     let k = gaps.len() / 2;
     let step = *gaps.select_nth_unstable(k).1;
-    super::local_fit::inverse_depth_noise(&raster, super::local_fit::NOISE_SPACING * step)
+    super::local_fit::inverse_depth_noise(&raster, SURFACE_NOISE_SPACING * step)
 }
 
 fn best_hypothesis(
