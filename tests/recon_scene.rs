@@ -224,6 +224,74 @@ fn floor_and_table_planes_and_gravity_are_found() {
                 < 3.0));
 }
 
+/// The room's depth as a stereo rig would measure it: focal length × baseline `f_b` (px·m) and
+/// Gaussian disparity noise of `sigma_d` pixels (σ_Z ≈ Z²·σ_d/(f·B)), from a fixed seed.
+fn with_disparity_noise(depth: &Raster<f32>, f_b: f32, sigma_d: f32, seed: u64) -> Raster<f32> {
+    let mut state = seed | 1;
+    let mut unit = move || {
+        // xorshift64*
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        (state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 40) as f32 / (1u64 << 24) as f32
+    };
+    Raster::from_fn(depth.width(), depth.height(), |x, y| {
+        let (u1, u2) = (unit().max(1e-7), unit());
+        let gaussian = (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos();
+        let d = f_b / *depth.get(x, y) + sigma_d * gaussian;
+        if d > 0.0 {
+            f_b / d
+        } else {
+            f32::NAN
+        }
+    })
+}
+
+#[test]
+fn planes_normals_and_gravity_survive_stereo_depth_noise() {
+    // 0.5 px of disparity noise with a 12 cm baseline: 2–8 % depth noise over the room.
+    let room = room(320, 240, 280.0);
+    let noisy = with_disparity_noise(&room.depth, 280.0 * 0.12, 0.5, 0x5eed);
+    let mesh = SceneMesh::from_depth(&noisy, &room.camera, &MeshOptions::default()).unwrap();
+    // Mesh normals on the floor and the table top (away from their edges).
+    let mut errors = [Vec::new(), Vec::new()];
+    for k in 0..mesh.vertex_count() {
+        let (x, y) = pixel_of(&room, mesh.uvs[k]);
+        let slot = match *room.labels.get(x, y) {
+            Label::Floor => 0,
+            Label::TableTop => 1,
+            _ => continue,
+        };
+        if interior(&room, x, y, 4) {
+            let err = Vec3::from(mesh.normals[k]).angle_between(room.up());
+            errors[slot].push(err.to_degrees());
+        }
+    }
+    for (name, e) in ["floor", "table"].iter().zip(errors.iter_mut()) {
+        assert!(e.len() > 500, "{name}: {} vertices", e.len());
+        e.sort_by(f32::total_cmp);
+        let median = e[e.len() / 2];
+        assert!(median < 5.0, "{name} normal error median {median}°");
+    }
+    // Planes and gravity from them.
+    let found = surfaces_of(&room, &mesh);
+    assert_eq!(found.up_source, UpSource::Planes);
+    let up_err = found.up.angle_between(room.up()).to_degrees();
+    assert!(up_err < 3.0, "up error {up_err}°");
+    for (name, height) in [("floor", FLOOR_Y), ("table", TABLE_Y)] {
+        let s = found
+            .surfaces
+            .iter()
+            .find(|s| {
+                let c = room.to_camera.transpose() * s.centroid;
+                s.kind == SurfaceKind::Horizontal && (c.y - height).abs() < 0.05
+            })
+            .unwrap_or_else(|| panic!("no horizontal {name} at {height} m: {found:#?}"));
+        let err = s.normal.angle_between(room.up()).to_degrees();
+        assert!(err < 3.0, "{name} plane normal error {err}°");
+    }
+}
+
 #[test]
 fn pick_on_the_floor_returns_the_analytic_point() {
     let room = room(320, 240, 280.0);

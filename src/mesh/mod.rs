@@ -4,6 +4,7 @@
 //! | file | job |
 //! |---|---|
 //! | [`grid`] | depth map → [`SceneMesh`]: one vertex per pixel (or block), cut at depth discontinuities |
+//! | `local_fit` | normals robust to depth noise: edge-aware plane fits in inverse depth, growing with the noise |
 //! | [`simplify`] | quadric edge collapse down to a triangle budget: flat regions coarse, edges fine |
 //! | [`bvh`] | [`Bvh`]: closest-hit (pick) and any-hit (occlusion) queries over obvhs' CWBVH |
 //! | [`surfaces`] | support planes (RANSAC + refinement) and the gravity "up" |
@@ -13,6 +14,7 @@
 pub mod bvh;
 pub mod export;
 pub mod grid;
+mod local_fit;
 pub mod place;
 pub mod simplify;
 pub mod surfaces;
@@ -37,7 +39,9 @@ use glam::{DVec3, Vec3};
 pub struct SceneMesh {
     /// Vertex positions, metres.
     pub positions: Vec<[f32; 3]>,
-    /// Unit vertex normals (smooth: area-weighted over the triangles that share the vertex).
+    /// Unit vertex normals, facing the camera. From [`SceneMesh::from_depth`]: the normal of a
+    /// plane fitted robustly to the depth around the vertex (see [`grid`]); otherwise smooth,
+    /// area-weighted over the triangles that share the vertex.
     pub normals: Vec<[f32; 3]>,
     /// Unit tangents along increasing `u` of the photo, with the bitangent sign in `w`.
     pub tangents: Vec<[f32; 4]>,
@@ -71,7 +75,20 @@ impl SceneMesh {
     /// Recomputes smooth normals and tangents from positions, UVs and indices (after positions
     /// changed, e.g. by simplification).
     pub fn recompute_normals_and_tangents(&mut self) {
-        let (normals, tangents) = normals_and_tangents(&self.positions, &self.uvs, &self.indices);
+        let (normals, tangents) =
+            normals_and_tangents(&self.positions, &self.uvs, &self.indices, None);
+        self.normals = normals;
+        self.tangents = tangents;
+    }
+
+    /// Recomputes the tangents for the current normals, keeping each normal that is finite and of
+    /// unit length (e.g. the robust normals of [`SceneMesh::from_depth`], which a simplification
+    /// keeps for the samples it keeps) and recomputing the others from the triangles.
+    pub fn recompute_tangents_keeping_normals(&mut self) {
+        let given = std::mem::take(&mut self.normals);
+        let given = (given.len() == self.positions.len()).then_some(given.as_slice());
+        let (normals, tangents) =
+            normals_and_tangents(&self.positions, &self.uvs, &self.indices, given);
         self.normals = normals;
         self.tangents = tangents;
     }
@@ -114,12 +131,14 @@ impl SceneMesh {
     }
 }
 
-/// Area-weighted smooth normals and UV-aligned tangents. A vertex whose triangles cancel out (or
-/// that no triangle uses) gets the direction towards the camera, so no normal is ever degenerate.
+/// Area-weighted smooth normals (or the `given` ones where those are finite and unit) and
+/// UV-aligned tangents. A vertex whose triangles cancel out (or that no triangle uses) gets the
+/// direction towards the camera, so no normal is ever degenerate.
 pub(crate) fn normals_and_tangents(
     positions: &[[f32; 3]],
     uvs: &[[f32; 2]],
     indices: &[u32],
+    given: Option<&[[f32; 3]]>,
 ) -> (Vec<[f32; 3]>, Vec<[f32; 4]>) {
     let n = positions.len();
     let mut normal_sum = vec![DVec3::ZERO; n];
@@ -168,7 +187,13 @@ pub(crate) fn normals_and_tangents(
     let mut tangents = Vec::with_capacity(n);
     for i in 0..n {
         let towards_camera = (-Vec3::from(positions[i]).as_dvec3()).normalize_or(DVec3::Z);
-        let normal = normal_sum[i].try_normalize().unwrap_or(towards_camera);
+        let kept = given
+            .map(|g| Vec3::from(g[i]).as_dvec3())
+            .filter(|g| g.is_finite() && (g.length() - 1.0).abs() < 1e-3)
+            .map(|g| g.normalize());
+        let normal = kept
+            .or_else(|| normal_sum[i].try_normalize())
+            .unwrap_or(towards_camera);
         // Gram–Schmidt; fall back to any perpendicular when UVs say nothing.
         let t = tangent_sum[i] - normal * normal.dot(tangent_sum[i]);
         let tangent = t

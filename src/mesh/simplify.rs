@@ -268,7 +268,9 @@ pub fn simplify(mesh: &SceneMesh, max_triangles: usize) -> SceneMesh {
 
     let mut out = SceneMesh {
         positions: mesh.positions.clone(),
-        normals: Vec::new(),
+        // Every kept vertex is an original sample: its normal (robust, from the full-resolution
+        // depth) stays valid, and is better than one from the coarse triangles.
+        normals: mesh.normals.clone(),
         tangents: Vec::new(),
         uvs: mesh.uvs.clone(),
         indices: tris
@@ -279,7 +281,7 @@ pub fn simplify(mesh: &SceneMesh, max_triangles: usize) -> SceneMesh {
             .collect(),
     };
     out.remove_unused_vertices();
-    out.recompute_normals_and_tangents();
+    out.recompute_tangents_keeping_normals();
     out
 }
 

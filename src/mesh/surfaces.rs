@@ -3,13 +3,27 @@
 //! refinement and a connectivity check in the image; and the gravity "up" estimated from the
 //! largest near-horizontal planes.
 //!
-//! Each round samples planes through three points whose normals agree with the plane, scores them
-//! by the points within a *depth-relative* distance and a normal tolerance, refits the best one by
-//! principal component analysis, keeps only its largest piece that is connected in the image (a
-//! table top and a chair seat at the same height are two surfaces), and removes it from the pool.
+//! Each round samples planes (through three points whose normals agree with the plane, or through
+//! one point along its own normal), scores them by the points within a distance tolerance and a
+//! normal tolerance, refits the best one by least squares, keeps only its largest piece that is
+//! connected in the image (a table top and a chair seat at the same height are two surfaces), and
+//! removes it from the pool. A hypothesis whose largest piece is too small is dropped and the
+//! search goes on.
 //!
-//! "Up" is the inlier-weighted mean normal of the near-horizontal planes (normals within 50° of the
-//! camera's +Y, or of −Y for ceilings) that agree within 10° with the largest of them; with no such
+//! ## Noise model
+//! Depth from stereo has constant noise in *inverse* depth `w = 1/Z` (`σ_w = σ_d / (f·B)` for a
+//! disparity noise `σ_d`; the familiar `σ_Z ≈ Z²·σ_d/(f·B)`), and on a plane `w` is an affine
+//! function of the pixel. So `σ_w` is estimated from the mesh's own samples (robustly, from second
+//! differences on its pixel grid), a point is on a plane when its inverse depth is within
+//! `3·σ_w` of the plane's along its ray — equivalently, its distance from the plane is within
+//! `3·σ_w·Z·|D|` for a plane at distance `D` from the camera — or within the relative
+//! [`SurfaceOptions::distance_tolerance`], whichever is larger; and planes are refined by linear
+//! least squares of `w` over the pixel coordinates, which weights every point by its true
+//! precision (a principal-axis fit in 3D lets the noisiest, farthest points dominate).
+//!
+//! "Up" is the inlier-weighted mean normal of the near-horizontal planes (normals within 35° of the
+//! camera's +Y, or of −Y for ceilings: the gravity prior of a camera pitched or rolled by less than
+//! that) that agree within 10° with the direction most of their points agree with; with no such
 //! plane it falls back to the camera's +Y (the image's "up", i.e. −image-y).
 
 use glam::{DVec3, Vec2, Vec3};
@@ -21,9 +35,11 @@ use crate::error::{Error, Result};
 /// How surfaces are searched for.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SurfaceOptions {
-    /// At most this many surfaces, largest first. Default 8.
+    /// At most this many surfaces, largest first. Default 16 (a cluttered room has a dozen planes
+    /// larger than its table top: walls, floor pieces, box sides).
     pub max_surfaces: usize,
-    /// A point is on a plane when its distance is below this fraction of its depth. Default 0.01.
+    /// A point is on a plane when its distance is below this fraction of its depth (or within the
+    /// depth noise measured on the mesh, when that is larger: see the module docs). Default 0.01.
     pub distance_tolerance: f32,
     /// …and its normal within this many degrees of the plane's. Default 15°.
     pub normal_tolerance_deg: f32,
@@ -40,7 +56,7 @@ pub struct SurfaceOptions {
 impl Default for SurfaceOptions {
     fn default() -> Self {
         SurfaceOptions {
-            max_surfaces: 8,
+            max_surfaces: 16,
             distance_tolerance: 0.01,
             normal_tolerance_deg: 15.0,
             min_fraction: 0.01,
@@ -182,15 +198,26 @@ pub fn detect_surfaces(
             }
         }
     }
+    let tolerance = Tolerance {
+        relative: options.distance_tolerance,
+        inverse_depth: inverse_depth_noise_of(mesh, camera)
+            .map_or(0.0, |sigma| (INLIER_SIGMAS * sigma) as f32),
+        cos_normal: options.normal_tolerance_deg.to_radians().cos(),
+    };
     let min_inliers = ((points.len() as f32 * options.min_fraction).ceil() as usize).max(3);
-    let cos_tol = options.normal_tolerance_deg.to_radians().cos();
     let mut rng = XorShift(options.seed | 1);
     let mut remaining: Vec<usize> = (0..points.len()).collect();
     let mut found: Vec<(Plane, Vec<usize>)> = Vec::new();
     let grid = ImageGrid::new(camera);
+    // Hypotheses whose best piece was too small are dropped from the pool (so the next round
+    // looks elsewhere); after MAX_MISSES in a row the pool holds no more surfaces.
+    let mut misses = 0;
 
-    while found.len() < options.max_surfaces && remaining.len() >= min_inliers {
-        let Some(mut plane) = best_hypothesis(&points, &remaining, options, cos_tol, &mut rng)
+    while found.len() < options.max_surfaces
+        && remaining.len() >= min_inliers
+        && misses < MAX_MISSES
+    {
+        let Some(mut plane) = best_hypothesis(&points, &remaining, options, &tolerance, &mut rng)
         else {
             break;
         };
@@ -199,18 +226,27 @@ pub fn detect_surfaces(
             inliers = remaining
                 .iter()
                 .copied()
-                .filter(|&i| plane.accepts(&points[i], options.distance_tolerance, cos_tol))
+                .filter(|&i| plane.accepts(&points[i], &tolerance))
                 .collect();
-            match fit_plane(&points, &inliers) {
+            match fit_plane(&points, &inliers, camera) {
                 Some(p) => plane = p,
                 None => break,
             }
         }
         let piece = grid.largest_component(&points, &inliers);
         if piece.len() < min_inliers {
-            break;
+            // Too small to be a surface: take its points out of the pool so that the next
+            // hypothesis is another one.
+            misses += 1;
+            let mut on = vec![false; points.len()];
+            for &i in &inliers {
+                on[i] = true;
+            }
+            remaining.retain(|&i| !on[i]);
+            continue;
         }
-        if let Some(p) = fit_plane(&points, &piece) {
+        misses = 0;
+        if let Some(p) = fit_plane(&points, &piece, camera) {
             plane = p;
         }
         let mut on = vec![false; points.len()];
@@ -267,17 +303,79 @@ impl Plane {
         }
     }
 
-    fn accepts(&self, q: &Point, distance_tolerance: f32, cos_tol: f32) -> bool {
-        (self.normal.dot(q.p) - self.offset).abs() <= distance_tolerance * q.depth
-            && self.normal.dot(q.n).abs() >= cos_tol
+    fn accepts(&self, q: &Point, tolerance: &Tolerance) -> bool {
+        // |Δw| = |distance| / (Z·|D|) along the point's ray (module docs).
+        let distance = (self.normal.dot(q.p) - self.offset).abs();
+        let allowed =
+            q.depth * (tolerance.relative).max(tolerance.inverse_depth * self.offset.abs());
+        distance <= allowed && self.normal.dot(q.n).abs() >= tolerance.cos_normal
     }
+}
+
+/// Spacing (in grid steps) of the second differences the plane tolerance's noise is measured
+/// with: stereo errors are correlated over several pixels, and a point's offset from a plane
+/// includes the slow part that short differences cancel.
+const SURFACE_NOISE_SPACING: usize = 8;
+
+/// Consecutive hypotheses whose largest connected piece is too small after which the search
+/// ends (each drops its inliers from the pool, so the next one looks elsewhere).
+const MAX_MISSES: usize = 24;
+
+/// How many standard deviations of inverse-depth noise a point may lie off its plane.
+const INLIER_SIGMAS: f64 = 3.0;
+
+/// When a point lies on a plane.
+struct Tolerance {
+    /// Distance as a fraction of the point's depth.
+    relative: f32,
+    /// Inverse-depth residual, 1/m (`INLIER_SIGMAS · σ_w`; 0 when the noise is unknown).
+    inverse_depth: f32,
+    /// Cosine of the largest angle between the point's normal and the plane's.
+    cos_normal: f32,
+}
+
+/// `σ_w` of the mesh's samples (1/m), when its vertices lie on a pixel grid (as the meshes of
+/// [`SceneMesh::from_depth`] do): its inverse depths are put back on their pixels and
+/// [`super::local_fit::inverse_depth_noise`] measures them at the grid's step.
+fn inverse_depth_noise_of(mesh: &SceneMesh, camera: &Camera) -> Option<f64> {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    if mesh.uvs.len() != mesh.positions.len() || w < 3 || h < 3 {
+        return None;
+    }
+    let mut raster = crate::image::Raster::filled(w, h, f64::NAN);
+    let mut previous: Option<(usize, usize)> = None;
+    let mut gaps = Vec::new();
+    for (uv, p) in mesh.uvs.iter().zip(&mesh.positions) {
+        let x = (uv[0] * w as f32 - 0.5).round();
+        let y = (uv[1] * h as f32 - 0.5).round();
+        let inside = x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
+        // NaN-safe: only points in front of the camera count.
+        if !inside || p[2].is_nan() || p[2] >= 0.0 {
+            previous = None;
+            continue;
+        }
+        let (x, y) = (x as usize, y as usize);
+        *raster.get_mut(x, y) = -1.0 / p[2] as f64;
+        if let Some((px, py)) = previous {
+            if py == y && x > px {
+                gaps.push(x - px);
+            }
+        }
+        previous = Some((x, y));
+    }
+    if gaps.is_empty() {
+        return None;
+    }
+    let k = gaps.len() / 2;
+    let step = *gaps.select_nth_unstable(k).1;
+    super::local_fit::inverse_depth_noise(&raster, SURFACE_NOISE_SPACING * step)
 }
 
 fn best_hypothesis(
     points: &[Point],
     remaining: &[usize],
     options: &SurfaceOptions,
-    cos_tol: f32,
+    tolerance: &Tolerance,
     rng: &mut XorShift,
 ) -> Option<Plane> {
     const SCORE_SAMPLES: usize = 3000;
@@ -289,20 +387,28 @@ fn best_hypothesis(
             .collect()
     };
     let mut best: Option<(usize, Plane)> = None;
-    for _ in 0..options.iterations {
-        let [a, b, c] = [0; 3].map(|_| points[remaining[rng.below(remaining.len())]]);
-        let Some(plane) = Plane::through(a.p, b.p, c.p) else {
-            continue;
+    for round in 0..options.iterations {
+        // Alternate three-point planes (need no normals) and one point along its own normal
+        // (robust normals make these the likelier hits on a noisy surface).
+        let plane = if round % 2 == 0 {
+            let [a, b, c] = [0; 3].map(|_| points[remaining[rng.below(remaining.len())]]);
+            let Some(plane) = Plane::through(a.p, b.p, c.p) else {
+                continue;
+            };
+            if [a, b, c]
+                .iter()
+                .any(|q| plane.normal.dot(q.n).abs() < tolerance.cos_normal)
+            {
+                continue;
+            }
+            plane
+        } else {
+            let a = points[remaining[rng.below(remaining.len())]];
+            Plane::facing_camera(a.n, a.n.dot(a.p))
         };
-        if [a, b, c]
-            .iter()
-            .any(|q| plane.normal.dot(q.n).abs() < cos_tol)
-        {
-            continue;
-        }
         let score = sample
             .iter()
-            .filter(|&&i| plane.accepts(&points[i], options.distance_tolerance, cos_tol))
+            .filter(|&&i| plane.accepts(&points[i], tolerance))
             .count();
         if best.is_none_or(|(s, _)| score > s) {
             best = Some((score, plane));
@@ -311,74 +417,56 @@ fn best_hypothesis(
     best.map(|(_, p)| p)
 }
 
-/// Least-squares plane (smallest principal axis of the covariance), `None` for < 3 points or a
-/// degenerate (collinear) set.
-fn fit_plane(points: &[Point], idx: &[usize]) -> Option<Plane> {
+/// Least-squares plane in inverse depth (module docs): `w = α·u + β·v + γ` over the points'
+/// pixels, solved about their mean pixel for conditioning. `None` for < 3 points or pixels on a
+/// line.
+fn fit_plane(points: &[Point], idx: &[usize], camera: &Camera) -> Option<Plane> {
     if idx.len() < 3 {
         return None;
     }
-    let mean = idx.iter().map(|&i| points[i].p.as_dvec3()).sum::<DVec3>() / idx.len() as f64;
-    let mut cov = [[0.0f64; 3]; 3];
+    let count = idx.len() as f64;
+    let mean = idx
+        .iter()
+        .map(|&i| points[i].px.as_dvec2())
+        .sum::<glam::DVec2>()
+        / count;
+    let mut m = [[0.0f64; 3]; 3];
+    let mut rhs = [0.0f64; 3];
     for &i in idx {
-        let d = points[i].p.as_dvec3() - mean;
-        let d = [d.x, d.y, d.z];
+        let q = &points[i];
+        let d = q.px.as_dvec2() - mean;
+        let x = [d.x, d.y, 1.0];
+        let w = 1.0 / q.depth as f64;
         for r in 0..3 {
             for c in 0..3 {
-                cov[r][c] += d[r] * d[c];
+                m[r][c] += x[r] * x[c];
             }
+            rhs[r] += x[r] * w;
         }
     }
-    let (values, vectors) = symmetric_eigen(cov);
-    let smallest = (0..3).min_by(|&a, &b| values[a].total_cmp(&values[b]))?;
-    let others: Vec<f64> = (0..3)
-        .filter(|&k| k != smallest)
-        .map(|k| values[k])
-        .collect();
-    if others.iter().any(|&v| v.is_nan() || v <= 0.0) {
+    let m = glam::DMat3::from_cols_array_2d(&m);
+    let det = m.determinant();
+    let scale = m.x_axis.x * m.y_axis.y * m.z_axis.z;
+    if !(det.is_finite() && scale > 0.0 && det > 1e-9 * scale) {
         return None;
     }
-    let n = vectors[smallest].try_normalize()?;
-    let n32 = n.as_vec3();
-    Some(Plane::facing_camera(n32, n.dot(mean) as f32))
-}
-
-/// Eigenvalues and eigenvectors of a symmetric 3×3 matrix (cyclic Jacobi rotations).
-fn symmetric_eigen(mut a: [[f64; 3]; 3]) -> ([f64; 3], [DVec3; 3]) {
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _ in 0..50 {
-        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
-        let scale = a[0][0].abs() + a[1][1].abs() + a[2][2].abs();
-        if off <= 1e-15 * scale || off == 0.0 {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q].abs() < 1e-300 {
-                continue;
-            }
-            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let t = if theta == 0.0 { 1.0 } else { t };
-            let c = 1.0 / (t * t + 1.0).sqrt();
-            let s = t * c;
-            for row in a.iter_mut() {
-                let (akp, akq) = (row[p], row[q]);
-                row[p] = c * akp - s * akq;
-                row[q] = s * akp + c * akq;
-            }
-            let (row_p, row_q) = (a[p], a[q]);
-            for k in 0..3 {
-                a[p][k] = c * row_p[k] - s * row_q[k];
-                a[q][k] = s * row_p[k] + c * row_q[k];
-            }
-            for row in v.iter_mut() {
-                let (vp, vq) = (row[p], row[q]);
-                row[p] = c * vp - s * vq;
-                row[q] = s * vp + c * vq;
-            }
-        }
+    let theta = m.inverse() * DVec3::from(rhs);
+    let (alpha, beta, centre) = (theta.x, theta.y, theta.z);
+    let (fx, fy) = (camera.fx as f64, camera.fy as f64);
+    let (cx, cy) = (camera.cx as f64, camera.cy as f64);
+    // n' · p = −1 with n' = (−α·fx, β·fy, γ + α·cx + β·cy), γ = centre − α·ū − β·v̄.
+    let n = DVec3::new(
+        -alpha * fx,
+        beta * fy,
+        centre + alpha * (cx - mean.x) + beta * (cy - mean.y),
+    );
+    let len = n.length();
+    if !(len.is_finite() && len > 0.0) {
+        return None;
     }
-    let col = |k: usize| DVec3::new(v[0][k], v[1][k], v[2][k]);
-    ([a[0][0], a[1][1], a[2][2]], [col(0), col(1), col(2)])
+    let normal = (n / len).as_vec3();
+    let offset = (-1.0 / len) as f32;
+    (normal.is_finite() && offset.is_finite()).then(|| Plane::facing_camera(normal, offset))
 }
 
 /// Occupancy grid over the image for connectivity: cells about 1/100 of the larger image side.
@@ -451,26 +539,39 @@ impl ImageGrid {
     }
 }
 
+/// Largest angle between a plane's (or a ceiling's flipped) normal and the camera's +Y for it to
+/// count towards "up": the gravity prior, i.e. the camera pitched or rolled by at most this much.
+const MAX_UP_TILT_DEG: f32 = 35.0;
+
 fn estimate_up(found: &[(Plane, Vec<usize>)]) -> (Vec3, UpSource) {
-    let cos50 = 50f32.to_radians().cos();
+    let cos_gate = MAX_UP_TILT_DEG.to_radians().cos();
     // Candidate up directions: normals of near-horizontal planes, ceilings flipped.
     let candidates: Vec<(Vec3, usize)> = found
         .iter()
         .filter_map(|(plane, piece)| {
             let n = plane.normal;
-            if n.y >= cos50 {
+            if n.y >= cos_gate {
                 Some((n, piece.len()))
-            } else if -n.y >= cos50 {
+            } else if -n.y >= cos_gate {
                 Some((-n, piece.len()))
             } else {
                 None
             }
         })
         .collect();
-    let Some(&(reference, _)) = candidates.iter().max_by_key(|c| c.1) else {
+    let cos10 = 10f32.to_radians().cos();
+    // The reference is the direction most of the horizontal area agrees with (floor and table
+    // tops together outvote one large spurious plane).
+    let agreeing = |r: Vec3| {
+        candidates
+            .iter()
+            .filter(|(n, _)| n.dot(r) >= cos10)
+            .map(|(_, w)| *w)
+            .sum::<usize>()
+    };
+    let Some(&(reference, _)) = candidates.iter().max_by_key(|(n, w)| (agreeing(*n), *w)) else {
         return (Vec3::Y, UpSource::CameraFallback);
     };
-    let cos10 = 10f32.to_radians().cos();
     let sum: Vec3 = candidates
         .iter()
         .filter(|(n, _)| n.dot(reference) >= cos10)
@@ -624,17 +725,6 @@ impl XorShift {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn jacobi_finds_the_plane_normal() {
-        let cov = [[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 0.01]];
-        let (vals, vecs) = symmetric_eigen(cov);
-        for k in 0..3 {
-            let m = glam::DMat3::from_cols_array_2d(&cov);
-            let r = m * vecs[k] - vecs[k] * vals[k];
-            assert!(r.length() < 1e-9, "{r}");
-        }
-    }
 
     #[test]
     fn hull_and_point_in_polygon() {

@@ -97,6 +97,8 @@ fn spread(mut values: Vec<f64>) -> Option<Spread> {
 #[derive(Debug, Clone, serde::Serialize)]
 struct PlaneResult {
     plane: &'static str,
+    /// The plane's height along the true up relative to the camera, metres.
+    height_m: f64,
     /// Pixels of the plane seen in the left view.
     pixels: usize,
     /// Angle between the mesh's normal and the true normal over those pixels, degrees.
@@ -130,6 +132,20 @@ struct SceneResult {
     up_error_deg: f64,
     up_source: String,
     planes: Vec<PlaneResult>,
+    /// Every detected surface, largest first, against the truth.
+    surfaces: Vec<SurfaceSummary>,
+}
+
+/// One detected surface seen against the truth.
+#[derive(Debug, Clone, serde::Serialize)]
+struct SurfaceSummary {
+    kind: String,
+    inliers: usize,
+    /// Angle between its normal and the true up, degrees.
+    tilt_deg: f64,
+    /// Its centroid's height along the true up, relative to the camera, metres.
+    height_m: f64,
+    area_m2: f64,
 }
 
 /// Dispatches `parallax eval reconstruction`.
@@ -307,6 +323,7 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
             let detected = best_match(&surfaces, up, plane);
             let mut result = PlaneResult {
                 plane: plane.name,
+                height_m: plane.offset as f64,
                 pixels,
                 normal_error_deg,
                 detected_normal_error_deg: detected
@@ -356,6 +373,17 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
         up_error_deg: angle_deg(surfaces.up, up) as f64,
         up_source: format!("{:?}", surfaces.up_source),
         planes: plane_results,
+        surfaces: surfaces
+            .surfaces
+            .iter()
+            .map(|s| SurfaceSummary {
+                kind: format!("{:?}", s.kind),
+                inliers: s.inliers,
+                tilt_deg: angle_deg(s.normal, up) as f64,
+                height_m: up.dot(s.centroid) as f64,
+                area_m2: s.area_m2 as f64,
+            })
+            .collect(),
     })
 }
 
@@ -493,8 +521,9 @@ fn markdown(results: &[SceneResult], args: &ReconstructionArgs) -> String {
         for p in &r.planes {
             let _ = writeln!(
                 s,
-                "  - {}: {} px; mesh normal err. {}; detected plane height err. {}; placement at {} → {}",
+                "  - {} (height {:+.2} m): {} px; mesh normal err. {}; detected plane height err. {}; placement at {} → {}",
                 p.plane,
+                p.height_m,
                 p.pixels,
                 p.normal_error_deg
                     .map(|v| format!("median {:.2}° / p90 {:.2}° over {} px", v.median, v.p90, v.count))
@@ -512,6 +541,24 @@ fn markdown(results: &[SceneResult], args: &ReconstructionArgs) -> String {
             );
         }
     }
+    let _ = writeln!(s, "\n## Detected surfaces\n");
+    for r in results {
+        let list: Vec<String> = r
+            .surfaces
+            .iter()
+            .map(|x| {
+                format!(
+                    "{} {} pts, tilt {:.1}°, height {:+.2} m, {:.2} m²",
+                    x.kind.to_lowercase(),
+                    x.inliers,
+                    x.tilt_deg,
+                    x.height_m,
+                    x.area_m2
+                )
+            })
+            .collect();
+        let _ = writeln!(s, "- **{}**: {}", r.scene, list.join("; "));
+    }
     let _ = writeln!(
         s,
         "\n## Definitions\n\n\
@@ -527,6 +574,9 @@ fn markdown(results: &[SceneResult], args: &ReconstructionArgs) -> String {
          {MATCH_NORMAL_DEG}° of the true up and its centroid within {} cm of the plane (most \
          inliers wins); its error is the angle between its normal and the true up. \"not found\" = \
          no surface matches.\n\
+         - Detected surfaces: kind, inliers, tilt = angle between the surface's normal and the \
+         true up, height = true up · centroid (the camera is at 0; compare with the true planes' \
+         heights in the details).\n\
          - Placement: an object of {} m placed (default options) at the plane's most interior \
          pixel; error = (true up · (base − true point at that pixel)) / distance of the true point, \
          signed (+ = above the surface).",

@@ -1,0 +1,417 @@
+//! Normals that survive depth noise: at each sample, a plane fitted robustly to the *inverse*
+//! depth of a neighbourhood that grows until the normal is well determined.
+//!
+//! ## Why inverse depth
+//! Seen through a pinhole, a plane `n · p = D` has inverse depth `w = 1/Z` that is an *affine*
+//! function of the pixel: with `r(u, v) = ((u − cx)/fx, −(v − cy)/fy, −1)` and `p = Z·r`,
+//! `w = n · r(u, v) / D = α·u + β·v + γ`. So a plane fit is a linear least-squares problem in
+//! `(u, v) → w`, the pixel coordinates are exact, and all the error sits in `w`. For stereo depth
+//! that error is also *homoscedastic*: `Z = f·B/d` gives `w = d/(f·B)`, so a constant disparity
+//! noise `σ_d` is a constant `σ_w = σ_d/(f·B)` (the familiar `σ_Z ≈ Z²·σ_d/(f·B)`). The normal is
+//! then `n ∝ (−α·fx, β·fy, γ + α·cx + β·cy)` (oriented towards the camera).
+//!
+//! ## The fit
+//! `σ_w` is estimated once per depth map ([`inverse_depth_noise`]). Each sample starts from the
+//! best supported (within a 5×5 window) of three planes through it: constant inverse depth, the
+//! least-squares plane of its 3×3, or the plane of its mesh triangles. Then, for radii 2, 4, 8,
+//! 16, 32 pixels (windows thinned to at most 17×17 samples), iteratively reweighted least squares
+//! with Tukey's biweight on the residual in units of `σ_w` refits the plane. The weights are measured against the sample's own plane, so
+//! a neighbour across a depth discontinuity (or a stereo outlier) gets weight 0: the fit is
+//! edge-aware without a separate edge test. Growth stops once the normal's standard error (from
+//! the fit's covariance) is below [`TARGET_NORMAL_ERROR_DEG`]; on exact depth that is at once, so
+//! noise-free input keeps its local normals.
+
+use glam::{DMat3, DVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::image::Raster;
+
+/// Radii of the growing neighbourhood, pixels.
+const RADII: [i64; 5] = [2, 4, 8, 16, 32];
+/// A window of radius `r` is sampled every `max(1, r / SUBSAMPLE_DIVISOR)` pixels (≤ 17×17 samples).
+const SUBSAMPLE_DIVISOR: i64 = 8;
+/// Reweighting rounds at the first radius (where the start may be far off); one round at each
+/// larger radius, whose weights come from the previous radius' plane.
+const FIRST_RADIUS_ROUNDS: usize = 2;
+/// Growth stops once the normal's standard error is below this, degrees.
+pub(crate) const TARGET_NORMAL_ERROR_DEG: f64 = 1.0;
+/// Tukey's biweight cut-off in units of `σ_w` (95 % efficiency under Gaussian noise).
+const TUKEY_C: f64 = 4.685;
+/// Sum of weights below which a fit is not trusted (the previous radius' fit stands).
+const MIN_WEIGHT: f64 = 8.0;
+/// Smallest noise assumed, relative to the median inverse depth: exact (rendered or synthetic)
+/// depth still carries f32 rounding, and Tukey's weights need a scale above zero.
+const MIN_RELATIVE_NOISE: f64 = 1e-4;
+/// Spacing of the second differences the noise is estimated from, pixels. Stereo noise is
+/// correlated over a few pixels (aggregation windows), which a spacing of 1 would underrate.
+pub(crate) const NOISE_SPACING: usize = 3;
+
+/// The inverse-depth map `w = 1/Z` (1/m) of a depth map, NaN where depth is missing.
+pub(crate) fn inverse_depth(depth: &Raster<f32>) -> Raster<f64> {
+    depth.map(|&z| {
+        if z.is_finite() && z > 0.0 {
+            let w = 1.0 / z as f64;
+            if w.is_finite() && w > 0.0 {
+                return w;
+            }
+        }
+        f64::NAN
+    })
+}
+
+/// Robust estimate of the inverse-depth noise `σ_w` (1/m): from second differences
+/// `w(x − s) − 2·w(x) + w(x + s)` along rows and columns (zero on any plane, since `w` is affine
+/// there; `√6·σ_w` standard deviation under white noise), as `1.4826 · median / √6`. Never below
+/// [`MIN_RELATIVE_NOISE`] of the median `w`. `None` when fewer than 16 triples are valid.
+pub(crate) fn inverse_depth_noise(w: &Raster<f64>, spacing: usize) -> Option<f64> {
+    let (width, height) = (w.width(), w.height());
+    let s = spacing.max(1);
+    let mut d2 = Vec::new();
+    let mut values = Vec::new();
+    for y in 0..height {
+        for x in 0..width {
+            let c = *w.get(x, y);
+            if !c.is_finite() {
+                continue;
+            }
+            values.push(c);
+            if x >= s && x + s < width {
+                let v = *w.get(x - s, y) - 2.0 * c + *w.get(x + s, y);
+                if v.is_finite() {
+                    d2.push(v.abs());
+                }
+            }
+            if y >= s && y + s < height {
+                let v = *w.get(x, y - s) - 2.0 * c + *w.get(x, y + s);
+                if v.is_finite() {
+                    d2.push(v.abs());
+                }
+            }
+        }
+    }
+    if d2.len() < 16 {
+        return None;
+    }
+    let median = |v: &mut Vec<f64>| {
+        let k = v.len() / 2;
+        *v.select_nth_unstable_by(k, f64::total_cmp).1
+    };
+    let sigma = 1.4826 * median(&mut d2) / 6f64.sqrt();
+    let floor = MIN_RELATIVE_NOISE * median(&mut values);
+    let sigma = sigma.max(floor);
+    (sigma.is_finite() && sigma > 0.0).then_some(sigma)
+}
+
+/// `w ≈ a·(u − u₀) + b·(v − v₀) + g` around a centre pixel `(u₀, v₀)`.
+#[derive(Clone, Copy, Debug)]
+struct LocalPlane {
+    a: f64,
+    b: f64,
+    g: f64,
+}
+
+impl LocalPlane {
+    fn residual(&self, du: f64, dv: f64, w: f64) -> f64 {
+        w - (self.a * du + self.b * dv + self.g)
+    }
+}
+
+/// Normal of the local plane at pixel centre `(u0, v0)`, unit and facing the camera.
+fn normal_of(plane: &LocalPlane, camera: &Camera, u0: f64, v0: f64) -> Option<DVec3> {
+    let n = unnormalised_normal(plane, camera, u0, v0);
+    n.try_normalize()
+}
+
+fn unnormalised_normal(plane: &LocalPlane, camera: &Camera, u0: f64, v0: f64) -> DVec3 {
+    let (fx, fy) = (camera.fx as f64, camera.fy as f64);
+    let (cx, cy) = (camera.cx as f64, camera.cy as f64);
+    DVec3::new(
+        -plane.a * fx,
+        plane.b * fy,
+        plane.g + plane.a * (cx - u0) + plane.b * (cy - v0),
+    )
+}
+
+/// The local plane through `(u0, v0)` at inverse depth `w0` with unit normal `n` (camera frame).
+fn plane_from_normal(n: DVec3, w0: f64, camera: &Camera, u0: f64, v0: f64) -> Option<LocalPlane> {
+    let (fx, fy) = (camera.fx as f64, camera.fy as f64);
+    let (cx, cy) = (camera.cx as f64, camera.cy as f64);
+    let r0 = DVec3::new((u0 - cx) / fx, -(v0 - cy) / fy, -1.0);
+    // w = n·r/D with D fixed by w(u0, v0) = w0.
+    let nr = n.dot(r0);
+    if nr.abs() < 1e-12 {
+        return None;
+    }
+    let inv_d = w0 / nr;
+    let plane = LocalPlane {
+        a: n.x / fx * inv_d,
+        b: -n.y / fy * inv_d,
+        g: w0,
+    };
+    (plane.a.is_finite() && plane.b.is_finite()).then_some(plane)
+}
+
+fn tukey(r: f64, c: f64) -> f64 {
+    let t = r / c;
+    if t.abs() >= 1.0 {
+        0.0
+    } else {
+        let s = 1.0 - t * t;
+        s * s
+    }
+}
+
+/// The robust local fitter over one inverse-depth map.
+pub(crate) struct LocalFitter<'a> {
+    w: &'a Raster<f64>,
+    camera: &'a Camera,
+    /// Tukey cut-off, 1/m.
+    c: f64,
+    sigma: f64,
+}
+
+impl<'a> LocalFitter<'a> {
+    pub(crate) fn new(w: &'a Raster<f64>, camera: &'a Camera, sigma: f64) -> Self {
+        LocalFitter {
+            w,
+            camera,
+            c: TUKEY_C * sigma,
+            sigma,
+        }
+    }
+
+    /// Visits the valid samples of the window of radius `r` (thinned) around `(x0, y0)`.
+    fn for_window(&self, x0: usize, y0: usize, r: i64, mut f: impl FnMut(f64, f64, f64)) {
+        let step = (r / SUBSAMPLE_DIVISOR).max(1);
+        let (width, height) = (self.w.width() as i64, self.w.height() as i64);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let mut dy = -r;
+        while dy <= r {
+            let y = y0 + dy;
+            if (0..height).contains(&y) {
+                let row = self.w.row(y as usize);
+                let mut dx = -r;
+                while dx <= r {
+                    let x = x0 + dx;
+                    if (0..width).contains(&x) {
+                        let w = row[x as usize];
+                        if w.is_finite() {
+                            f(dx as f64, dy as f64, w);
+                        }
+                    }
+                    dx += step;
+                }
+            }
+            dy += step;
+        }
+    }
+
+    /// Total Tukey weight of a plane's residuals in the radius-`r` window.
+    fn support(&self, x0: usize, y0: usize, r: i64, plane: &LocalPlane) -> f64 {
+        let mut total = 0.0;
+        self.for_window(x0, y0, r, |du, dv, w| {
+            total += tukey(plane.residual(du, dv, w), self.c)
+        });
+        total
+    }
+
+    /// One reweighted least-squares step (every sample weighted 1 without a `plane`); `None` when
+    /// too little support (below `min_weight`) or degenerate. Returns the new plane and the
+    /// inverse of the weighted normal matrix (for its covariance).
+    fn refit(
+        &self,
+        x0: usize,
+        y0: usize,
+        r: i64,
+        plane: Option<&LocalPlane>,
+        min_weight: f64,
+    ) -> Option<(LocalPlane, DMat3)> {
+        let mut m = [[0.0f64; 3]; 3];
+        let mut rhs = [0.0f64; 3];
+        let mut total = 0.0;
+        self.for_window(x0, y0, r, |du, dv, w| {
+            let k = plane.map_or(1.0, |p| tukey(p.residual(du, dv, w), self.c));
+            if k > 0.0 {
+                let x = [du, dv, 1.0];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        m[i][j] += k * x[i] * x[j];
+                    }
+                    rhs[i] += k * x[i] * w;
+                }
+                total += k;
+            }
+        });
+        if total < min_weight {
+            return None;
+        }
+        let m = DMat3::from_cols_array_2d(&m);
+        // Relative conditioning check: a window whose inliers lie on a line cannot fix a plane.
+        let det = m.determinant();
+        let scale = m.x_axis.x * m.y_axis.y * m.z_axis.z;
+        if !(det.is_finite() && scale > 0.0 && det > 1e-9 * scale) {
+            return None;
+        }
+        let inv = m.inverse();
+        let theta = inv * DVec3::from(rhs);
+        let plane = LocalPlane {
+            a: theta.x,
+            b: theta.y,
+            g: theta.z,
+        };
+        (theta.is_finite()).then_some((plane, inv))
+    }
+
+    /// Standard error of the normal's direction (radians) for a fit with parameter covariance
+    /// `σ_w² · inv`.
+    fn normal_error(&self, plane: &LocalPlane, inv: &DMat3, u0: f64, v0: f64) -> f64 {
+        let camera = self.camera;
+        let (fx, fy) = (camera.fx as f64, camera.fy as f64);
+        let (cx, cy) = (camera.cx as f64, camera.cy as f64);
+        let n = unnormalised_normal(plane, camera, u0, v0);
+        let len2 = n.length_squared();
+        if len2.is_nan() || len2 <= 0.0 {
+            return f64::INFINITY;
+        }
+        // d n / d (a, b, g), columns.
+        let jac = DMat3::from_cols(
+            DVec3::new(-fx, 0.0, cx - u0),
+            DVec3::new(0.0, fy, cy - v0),
+            DVec3::new(0.0, 0.0, 1.0),
+        );
+        let cov = jac * (*inv * self.sigma * self.sigma) * jac.transpose();
+        let unit = n / len2.sqrt();
+        let trace = cov.x_axis.x + cov.y_axis.y + cov.z_axis.z;
+        let along = unit.dot(cov * unit);
+        ((trace - along).max(0.0) / len2).sqrt()
+    }
+
+    /// The robust normal at pixel `(x0, y0)` (which must have depth), starting from the mesh's
+    /// own normal `start` there when it has one. `None` when no plane fits.
+    pub(crate) fn normal_at(&self, x0: usize, y0: usize, start: Option<Vec3>) -> Option<Vec3> {
+        let w0 = *self.w.get(x0, y0);
+        if !w0.is_finite() {
+            return None;
+        }
+        let (u0, v0) = (x0 as f64 + 0.5, y0 as f64 + 0.5);
+        // Candidate starts: constant inverse depth through the median of the 3×3 (one outlier
+        // pixel cannot anchor it: right under heavy noise), the plain least-squares plane of the
+        // 3×3 (right on clean depth away from edges), and the plane of the mesh's triangles
+        // (right on clean depth at an edge, where the triangles are cut). The one with the most
+        // support in the first window wins.
+        let mut near = Vec::with_capacity(9);
+        self.for_window(x0, y0, 1, |_, _, w| near.push(w));
+        near.sort_by(f64::total_cmp);
+        let flat = LocalPlane {
+            a: 0.0,
+            b: 0.0,
+            g: near[near.len() / 2],
+        };
+        let candidates = [
+            Some(flat),
+            self.refit(x0, y0, 1, None, 3.0).map(|(p, _)| p),
+            start.and_then(|n| plane_from_normal(n.as_dvec3(), w0, self.camera, u0, v0)),
+        ];
+        let r0 = RADII[0];
+        let mut plane = flat;
+        let mut best = f64::NEG_INFINITY;
+        for p in candidates.into_iter().flatten() {
+            let support = self.support(x0, y0, r0, &p);
+            if support > best {
+                (plane, best) = (p, support);
+            }
+        }
+        let mut fitted = None;
+        'radii: for (k, &r) in RADII.iter().enumerate() {
+            let rounds = if k == 0 { FIRST_RADIUS_ROUNDS } else { 1 };
+            for _ in 0..rounds {
+                match self.refit(x0, y0, r, Some(&plane), MIN_WEIGHT) {
+                    Some((p, inv)) => {
+                        plane = p;
+                        fitted = Some(inv);
+                    }
+                    None => break 'radii,
+                }
+            }
+            if let Some(inv) = &fitted {
+                if self.normal_error(&plane, inv, u0, v0) < TARGET_NORMAL_ERROR_DEG.to_radians() {
+                    break;
+                }
+            }
+        }
+        fitted?;
+        normal_of(&plane, self.camera, u0, v0).map(|n| n.as_vec3())
+    }
+}
+
+/// Robust normals at the given pixels of a depth map (see the module docs); `start` holds the
+/// mesh's own normal for each (or `None`). Entries are `None` where no plane fits (isolated
+/// samples), or all are when the noise cannot be estimated (too few valid pixels).
+pub(crate) fn fitted_normals(
+    depth: &Raster<f32>,
+    camera: &Camera,
+    pixels: &[(usize, usize)],
+    start: &[Option<Vec3>],
+) -> Vec<Option<Vec3>> {
+    let w = inverse_depth(depth);
+    let Some(sigma) = inverse_depth_noise(&w, NOISE_SPACING) else {
+        return vec![None; pixels.len()];
+    };
+    let fitter = LocalFitter::new(&w, camera, sigma);
+    pixels
+        .par_iter()
+        .zip(start.par_iter())
+        .map(|(&(x, y), s)| fitter.normal_at(x, y, *s))
+        .collect()
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// Depth of the plane `n · p = d` along the ray of pixel `(x, y)`.
+    pub(crate) fn plane_depth(c: &Camera, n: Vec3, d: f32, x: usize, y: usize) -> f32 {
+        let dir = c.unproject(x as f32 + 0.5, y as f32 + 0.5, 1.0).unwrap();
+        d / n.dot(dir)
+    }
+
+    #[test]
+    fn normal_of_an_exact_plane_is_exact_off_centre() {
+        let c = Camera::new(300.0, 320.0, 70.0, 40.0, 120, 90).unwrap();
+        let n = Vec3::new(0.3, 0.8, 0.4).normalize();
+        let depth = Raster::from_fn(120, 90, |x, y| plane_depth(&c, n, -2.0, x, y));
+        let w = inverse_depth(&depth);
+        let sigma = inverse_depth_noise(&w, NOISE_SPACING).unwrap();
+        let fitter = LocalFitter::new(&w, &c, sigma);
+        for (x, y) in [(0, 0), (60, 45), (119, 89), (10, 80)] {
+            let got = fitter.normal_at(x, y, None).unwrap();
+            assert!(got.angle_between(n).to_degrees() < 0.01, "{x},{y}: {got}");
+        }
+    }
+
+    #[test]
+    fn noise_estimate_recovers_white_disparity_noise() {
+        // A slanted plane with Gaussian noise of known σ added to its inverse depth.
+        let c = Camera::from_focal(400.0, 200, 150).unwrap();
+        let n = Vec3::new(0.0, 0.6, 0.8);
+        let mut rng = crate::mesh::surfaces::XorShift(7);
+        let sigma = 0.004;
+        let depth = Raster::from_fn(200, 150, |x, y| {
+            let z = plane_depth(&c, n, -2.0, x, y);
+            1.0 / (1.0 / z + sigma * gaussian(&mut rng))
+        });
+        let est = inverse_depth_noise(&inverse_depth(&depth), NOISE_SPACING).unwrap() as f32;
+        assert!(
+            (est / sigma - 1.0).abs() < 0.1,
+            "estimated {est}, true {sigma}"
+        );
+    }
+
+    /// Standard normal deviate (Box–Muller).
+    pub(crate) fn gaussian(rng: &mut crate::mesh::surfaces::XorShift) -> f32 {
+        let u1 = rng.unit().max(1e-7);
+        let u2 = rng.unit();
+        (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
+    }
+}
