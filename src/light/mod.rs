@@ -3,10 +3,16 @@
 //! | file | job |
 //! |---|---|
 //! | [`model`] | the shared lighting types: [`Light`], [`Sh9`], [`CubeMap`] and the cube-face convention |
+//! | [`shadow_mask`](mod@shadow_mask) | where the photo already has cast shadows (thesis Algorithm 5 and a chromaticity method) |
+//! | `filters` | small image filters the estimators share |
 
+mod filters;
 pub mod model;
+pub mod shadow_mask;
 
+pub use filters::luminance;
 pub use model::{
     cube_direction, cube_texel, sh9_basis_polynomials, CubeLevel, CubeMap, Light, LightKind, Sh9,
     CUBE_FACES,
 };
+pub use shadow_mask::{continuity_regions, shadow_mask, ShadowMethod, ShadowOptions, NO_REGION};
