@@ -67,7 +67,7 @@ impl ShadowOptions {
     /// # Errors
     /// `InvalidArgument` naming the option out of range.
     pub fn validate(&self) -> Result<()> {
-        if self.window < 3 || self.window % 2 == 0 || self.window > 1001 {
+        if self.window < 3 || self.window.is_multiple_of(2) || self.window > 1001 {
             return Err(Error::invalid(format!(
                 "shadow window must be odd and in 3..=1001 pixels, got {}",
                 self.window
