@@ -4,15 +4,21 @@
 //! |---|---|
 //! | [`model`] | the shared lighting types: [`Light`], [`Sh9`], [`CubeMap`] and the cube-face convention |
 //! | [`shadow_mask`](mod@shadow_mask) | where the photo already has cast shadows (thesis Algorithm 5 and a chromaticity method) |
+//! | [`sources`] | light sources seen in the photo: bright blobs → area lights |
+//! | [`normals`] | per-pixel normals from depth |
 //! | `filters` | small image filters the estimators share |
 
 mod filters;
 pub mod model;
+pub mod normals;
 pub mod shadow_mask;
+pub mod sources;
 
 pub use filters::luminance;
 pub use model::{
     cube_direction, cube_texel, sh9_basis_polynomials, CubeLevel, CubeMap, Light, LightKind, Sh9,
     CUBE_FACES,
 };
+pub use normals::normals_from_depth;
 pub use shadow_mask::{continuity_regions, shadow_mask, ShadowMethod, ShadowOptions, NO_REGION};
+pub use sources::{detect_sources, SourceOptions};
