@@ -5,12 +5,14 @@
 //! | [`model`] | the shared lighting types: [`Light`], [`Sh9`], [`CubeMap`] and the cube-face convention |
 //! | [`shadow_mask`](mod@shadow_mask) | where the photo already has cast shadows (thesis Algorithm 5 and a chromaticity method) |
 //! | [`sources`] | light sources seen in the photo: bright blobs → area lights |
+//! | [`prefilter`] | GGX-prefiltered cube mips, the DFG table, the thesis' roughness approximation |
 //! | [`normals`] | per-pixel normals from depth |
 //! | `filters` | small image filters the estimators share |
 
 mod filters;
 pub mod model;
 pub mod normals;
+pub mod prefilter;
 pub mod shadow_mask;
 pub mod sources;
 
@@ -20,5 +22,6 @@ pub use model::{
     CUBE_FACES,
 };
 pub use normals::normals_from_depth;
+pub use prefilter::{dfg_lut, prefilter_ggx, roughness_approximation, sample_cube};
 pub use shadow_mask::{continuity_regions, shadow_mask, ShadowMethod, ShadowOptions, NO_REGION};
 pub use sources::{detect_sources, SourceOptions};
