@@ -5,10 +5,12 @@
 //! | [`model`] | the shared lighting types: [`Light`], [`Sh9`], [`CubeMap`] and the cube-face convention |
 //! | [`shadow_mask`](mod@shadow_mask) | where the photo already has cast shadows (thesis Algorithm 5 and a chromaticity method) |
 //! | [`sources`] | light sources seen in the photo: bright blobs → area lights |
+//! | [`environment`] | HDR radiance around the insertion point (photo re-projection, host maps) and its SH9 |
 //! | [`prefilter`] | GGX-prefiltered cube mips, the DFG table, the thesis' roughness approximation |
 //! | [`normals`] | per-pixel normals from depth |
 //! | `filters` | small image filters the estimators share |
 
+pub mod environment;
 mod filters;
 pub mod model;
 pub mod normals;
@@ -16,6 +18,9 @@ pub mod prefilter;
 pub mod shadow_mask;
 pub mod sources;
 
+pub use environment::{
+    inverse_tone_map, sh9_from_cube, Environment, EnvironmentOptions, EnvironmentSource,
+};
 pub use filters::luminance;
 pub use model::{
     cube_direction, cube_texel, sh9_basis_polynomials, CubeLevel, CubeMap, Light, LightKind, Sh9,
