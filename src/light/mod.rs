@@ -6,12 +6,14 @@
 //! | [`shadow_mask`](mod@shadow_mask) | where the photo already has cast shadows (thesis Algorithm 5 and a chromaticity method) |
 //! | [`sources`] | light sources seen in the photo: bright blobs → area lights |
 //! | [`environment`] | HDR radiance around the insertion point (photo re-projection, host maps) and its SH9 |
+//! | [`fit`] | inverse rendering: the out-of-view light and ambient that explain the shading and shadows |
 //! | [`prefilter`] | GGX-prefiltered cube mips, the DFG table, the thesis' roughness approximation |
 //! | [`normals`] | per-pixel normals from depth |
 //! | `filters` | small image filters the estimators share |
 
 pub mod environment;
 mod filters;
+pub mod fit;
 pub mod model;
 pub mod normals;
 pub mod prefilter;
@@ -22,6 +24,7 @@ pub use environment::{
     inverse_tone_map, sh9_from_cube, Environment, EnvironmentOptions, EnvironmentSource,
 };
 pub use filters::luminance;
+pub use fit::{fit_lights, FitInputs, FitOptions, LightFit};
 pub use model::{
     cube_direction, cube_texel, sh9_basis_polynomials, CubeLevel, CubeMap, Light, LightKind, Sh9,
     CUBE_FACES,
