@@ -6,12 +6,14 @@
 //! | [`shadow_mask`](mod@shadow_mask) | where the photo already has cast shadows (thesis Algorithm 5 and a chromaticity method) |
 //! | [`sources`] | light sources seen in the photo: bright blobs → area lights |
 //! | [`environment`] | HDR radiance around the insertion point (photo re-projection, host maps) and its SH9 |
+//! | [`estimate`] | every stage in one call, for the Scene and the CLI |
 //! | [`fit`] | inverse rendering: the out-of-view light and ambient that explain the shading and shadows |
 //! | [`prefilter`] | GGX-prefiltered cube mips, the DFG table, the thesis' roughness approximation |
 //! | [`normals`] | per-pixel normals from depth |
 //! | `filters` | small image filters the estimators share |
 
 pub mod environment;
+pub mod estimate;
 mod filters;
 pub mod fit;
 pub mod model;
@@ -23,6 +25,7 @@ pub mod sources;
 pub use environment::{
     inverse_tone_map, sh9_from_cube, Environment, EnvironmentOptions, EnvironmentSource,
 };
+pub use estimate::{estimate_lighting, EstimateOptions, LightingEstimate};
 pub use filters::luminance;
 pub use fit::{fit_lights, FitInputs, FitOptions, LightFit};
 pub use model::{
