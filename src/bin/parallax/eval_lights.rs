@@ -185,11 +185,18 @@ fn evaluate(
         &depth,
         normals.as_ref(),
         &camera,
-        [0.0, 1.0, 0.0],
+        to_camera.transform_vector3(Vec3::Y).normalize().to_array(),
         Some(point.to_array()),
         &EstimateOptions::default(),
     )?;
     let seconds = start.elapsed().as_secs_f64();
+    if std::env::var("PLX_EVAL_DEBUG").is_ok() {
+        eprintln!(
+            "{:?}\nup {:?} point {point}",
+            estimate.fit,
+            to_camera.transform_vector3(Vec3::Y)
+        );
+    }
     let thesis = shadow_mask(
         &photo,
         None,
