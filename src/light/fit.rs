@@ -613,10 +613,14 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             mean.map(|v| std::f32::consts::PI * 0.5 * v / options.albedo),
         );
         main.confidence = 0.1;
+        // Sources seen in the photo stay (with their detected intensities): the fallback only
+        // stands in for what could not be inferred.
+        let mut lights = in_view.to_vec();
+        lights.push(main);
         LightFit {
             main,
             ambient,
-            lights: vec![main],
+            lights,
             fallback_used: true,
             residual: 1.0,
             shadow_disagreement: 0.0,

@@ -212,7 +212,11 @@ fn evaluate(
         .map(|z| z.is_finite())
         .collect();
     let truth_shadow: Vec<bool> = (0..w * h)
-        .map(|i| images.shadow.iter().any(|s| s.pixels()[i] < 0.5))
+        .map(|i| {
+            let mean: f32 = images.shadow.iter().map(|s| s.pixels()[i]).sum::<f32>()
+                / images.shadow.len() as f32;
+            mean < 0.5
+        })
         .collect();
     let iou_thesis = iou(&thesis, &truth_shadow, &valid);
     let iou_chromaticity = iou(&estimate.shadow_mask, &truth_shadow, &valid);
@@ -354,8 +358,8 @@ pub fn run(args: LightsArgs) -> Result<()> {
          between the direction to the estimated main light and to the true light giving the most irradiance there; \
          *in-view position error* — distance from each true light inside the frame to the nearest estimated positional \
          light, as % of the true light's distance from the camera; *found* — positional (in-view) lights kept by the fit; \
-         *shadow IoU* — against the pixels where some light's true visibility is below 0.5 (surfaces facing away \
-         count as shadow), mask > 0.5; *SH irradiance rel. RMS* — over 2000 directions, RGB, the estimate's SH9 \
+         *shadow IoU* — against the pixels where the true visibility averaged over the lights is below 0.5 \
+         (surfaces facing away count as shadow), mask > 0.5; *SH irradiance rel. RMS* — over 2000 directions, RGB, the estimate's SH9 \
          against the SH9 of a path-traced radiance probe at the insertion point (24² per face, 64 paths per texel); \
          *shading rel. RMS* — the fitted model (one albedo per continuous region) against the photo's luminance on \
          the fit's samples; *time* — the estimate (mask, sources, fit, environment) on this machine."
