@@ -41,10 +41,14 @@ fn basis(n: Vec3) -> (Vec3, Vec3) {
     (x, n.cross(x))
 }
 
-/// Radiance of a cube level in direction `d` (nearest texel).
+/// Radiance of a cube level in direction `d` (nearest texel); black for a level whose texel count
+/// does not match its size.
 pub fn sample_cube(level: &CubeLevel, d: Vec3) -> [f32; 3] {
     let (face, s, t) = cube_texel(d);
     let n = level.size as usize;
+    if n == 0 || level.texels.len() != CUBE_FACES * n * n {
+        return [0.0; 3];
+    }
     let i = ((s * n as f32) as usize).min(n - 1);
     let j = ((t * n as f32) as usize).min(n - 1);
     level.texels[face * n * n + j * n + i]
@@ -366,5 +370,6 @@ mod tests {
         };
         assert!(prefilter_ggx(&short, 3, 8).is_err());
         assert!(prefilter_ggx(&constant(4, [1.0; 3]), 0, 8).is_err());
+        assert_eq!(sample_cube(&short, Vec3::X), [0.0; 3]);
     }
 }
