@@ -27,6 +27,7 @@ mod geometry;
 mod integrator;
 mod lights;
 mod outputs;
+mod probe;
 mod sampling;
 mod shapes;
 mod textures;
@@ -41,6 +42,7 @@ pub use description::{
 };
 pub use geometry::MAX_TRIANGLES;
 pub use outputs::{Images, LightRecord, RenderStats, ENVIRONMENT_SIZE};
+pub use probe::radiance_probe;
 
 use glam::Vec3A;
 use std::time::{Duration, Instant};

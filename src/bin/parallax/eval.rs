@@ -15,6 +15,8 @@ use parallax::{Error, Result};
 
 use crate::common::CommonArgs;
 
+#[path = "eval_lights.rs"]
+mod lights;
 #[path = "eval_reconstruction.rs"]
 mod reconstruction;
 
@@ -31,6 +33,8 @@ enum What {
     Stereo(StereoArgs),
     /// Depth, mesh, normals, planes, up and placement against synthetic scenes' exact truth.
     Reconstruction(reconstruction::ReconstructionArgs),
+    /// Shadow mask, lights, environment and SH against synthetic scenes' exact truth.
+    Lights(lights::LightsArgs),
 }
 
 /// Arguments of `parallax eval stereo`.
@@ -59,6 +63,7 @@ pub fn run(args: Args) -> Result<()> {
     match args.what {
         What::Stereo(a) => run_stereo(a),
         What::Reconstruction(a) => reconstruction::run(a),
+        What::Lights(a) => lights::run(a),
     }
 }
 

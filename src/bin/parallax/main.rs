@@ -10,6 +10,7 @@ mod eval;
 mod info;
 #[cfg(feature = "gltf")]
 mod inspect;
+mod lights;
 mod mesh;
 mod surfaces;
 mod synth;
@@ -32,6 +33,8 @@ enum Command {
     Mesh(mesh::Args),
     /// Support planes and the gravity "up" from a stereo pair or depth, as JSON and a preview.
     Surfaces(surfaces::Args),
+    /// Light sources, main light, ambient, SH9 and environment of a stereo pair, with a preview.
+    Lights(lights::Args),
     /// Disparity, depth and confidence of a rectified stereo pair.
     Depth(depth::Args),
     /// Benchmarks against ground truth and peers (`parallax eval stereo`).
@@ -49,6 +52,7 @@ fn main() -> std::process::ExitCode {
         Command::Info(args) => info::run(args),
         Command::Mesh(args) => mesh::run(args),
         Command::Surfaces(args) => surfaces::run(args),
+        Command::Lights(args) => lights::run(args),
         Command::Depth(args) => depth::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Synth(args) => synth::run(args),

@@ -1,0 +1,773 @@
+//! The light arriving at a point from every direction: an HDR cube map and its SH9 irradiance.
+//!
+//! Three sources:
+//! - [`Environment::from_equirect`]: a host's HDR/EXR latitude-longitude map (the reference's
+//!   layout: the centre column looks along −Z, +X at three quarters, the top row is +Y).
+//! - [`Environment::from_photo`]: the photo re-projected through its depth onto a sphere around the
+//!   insertion point. Each pixel's 3D point is seen from the insertion point in some direction; the
+//!   nearest point wins a direction. Pixels without depth (sky, far lamps) are taken as infinitely
+//!   far, in their camera-ray direction. LDR photos are expanded to HDR first (see
+//!   [`inverse_tone_map`]). Directions the camera never saw (behind it, under the table…) are
+//!   filled by pull-push: the map is averaged down a pyramid counting only seen cells, and each
+//!   unseen cell takes the value of the finest level that saw something around it — a smooth
+//!   extension of what surrounds the hole, so a room stays a room rather than turning black.
+//!   Lights (detected or fitted) are then drawn into the map as discs of their solid angle.
+//! - [`Environment::from_cube`]: a cube map directly.
+//!
+//! SH projection robustness: every texel is made finite and non-negative (NaN → 0, negative → 0,
+//! +inf → the clamp) and clamped to `max_radiance` (luminance-preserving) before projection, so a
+//! 10⁶-bright sun pixel cannot swamp the ambient term — such a peak belongs to a directional
+//! light, not to nine smooth coefficients. The optional Lanczos window (`sh_window`) damps bands 1
+//! and 2 to reduce the ringing a small bright source causes (at the price of some blur). The cube
+//! itself keeps values up to the largest half float (65504), as an RGBA16F texture can hold.
+
+use glam::Vec3;
+
+use super::filters::{check_same, check_size, luminance};
+use super::model::{
+    cube_direction, cube_texel, CubeLevel, CubeMap, Light, LightKind, Sh9, CUBE_FACES,
+};
+use super::prefilter::prefilter_ggx;
+use crate::camera::Camera;
+use crate::error::{Error, Result};
+use crate::image::Raster;
+
+/// Largest value a texel keeps in the cube (the largest finite half float).
+pub const HALF_MAX: f32 = 65504.0;
+
+/// Options of the environment builders.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnvironmentOptions {
+    /// Cube face edge, texels (4..=1024).
+    pub face_size: u32,
+    /// Texels brighter than this (luminance) are scaled down to it before SH projection (> 0).
+    pub max_radiance: f32,
+    /// Lanczos window strength on SH bands 1 and 2, in [0, 1] (0 = none).
+    pub sh_window: f32,
+    /// What a fully saturated LDR pixel is expanded to (≥ 1).
+    pub ldr_peak: f32,
+}
+
+impl Default for EnvironmentOptions {
+    fn default() -> Self {
+        EnvironmentOptions {
+            face_size: 64,
+            max_radiance: 1000.0,
+            sh_window: 0.0,
+            ldr_peak: 8.0,
+        }
+    }
+}
+
+impl EnvironmentOptions {
+    /// Checks ranges.
+    ///
+    /// # Errors
+    /// `InvalidArgument` naming the option out of range.
+    pub fn validate(&self) -> Result<()> {
+        if !(4..=1024).contains(&self.face_size) {
+            return Err(Error::invalid(format!(
+                "environment face_size must be in 4..=1024, got {}",
+                self.face_size
+            )));
+        }
+        if !(self.max_radiance.is_finite() && self.max_radiance > 0.0) {
+            return Err(Error::invalid(format!(
+                "environment max_radiance must be finite and > 0, got {}",
+                self.max_radiance
+            )));
+        }
+        if !(0.0..=1.0).contains(&self.sh_window) {
+            return Err(Error::invalid(format!(
+                "environment sh_window must be in [0, 1], got {}",
+                self.sh_window
+            )));
+        }
+        if !(self.ldr_peak.is_finite() && self.ldr_peak >= 1.0) {
+            return Err(Error::invalid(format!(
+                "environment ldr_peak must be finite and >= 1, got {}",
+                self.ldr_peak
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Where an environment came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EnvironmentSource {
+    /// Re-projected from the photo.
+    Photo,
+    /// A host's or library's map.
+    Map,
+}
+
+/// HDR radiance around a point, with its SH9 irradiance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Environment {
+    /// Linear radiance, one level (see [`Environment::prefiltered`] for the glossy mips).
+    pub cube: CubeMap,
+    /// Irradiance in [`Sh9`]'s convention, projected from the clamped cube.
+    pub sh9: Sh9,
+    /// Fraction of directions (by solid angle) that the photo showed (1 for a map).
+    pub seen_fraction: f32,
+    /// Where it came from.
+    pub source: EnvironmentSource,
+}
+
+/// Expands an LDR linear value (the photo's white = 1) to HDR: values up to 0.8 are kept, and
+/// above that a quadratic rises to `peak` at 1.0 (continuous with slope 1 at 0.8), so only
+/// near-saturated pixels — lamps, windows, highlights — are boosted. The LDR photo cannot tell how
+/// much brighter a clipped lamp was; `peak` is that guess. Non-finite or negative input gives 0.
+pub fn inverse_tone_map(c: [f32; 3], peak: f32) -> [f32; 3] {
+    const KNEE: f32 = 0.8;
+    c.map(|v| {
+        let v = if v.is_finite() {
+            v.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        if v <= KNEE {
+            v
+        } else {
+            let t = (v - KNEE) / (1.0 - KNEE);
+            // v + k·t² reaches `peak` at t = 1.
+            v + (peak - 1.0).max(0.0) * t * t
+        }
+    })
+}
+
+fn sanitize(c: [f32; 3], clamp: f32) -> [f32; 3] {
+    c.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, clamp) })
+}
+
+/// Solid angle of the cube texel `(i, j)` of an `n × n` face.
+fn texel_solid_angle(i: usize, j: usize, n: usize) -> f32 {
+    let corner = |x: f64, y: f64| (x * y).atan2((x * x + y * y + 1.0).sqrt());
+    let (x0, x1) = (
+        2.0 * i as f64 / n as f64 - 1.0,
+        2.0 * (i + 1) as f64 / n as f64 - 1.0,
+    );
+    let (y0, y1) = (
+        2.0 * j as f64 / n as f64 - 1.0,
+        2.0 * (j + 1) as f64 / n as f64 - 1.0,
+    );
+    (corner(x0, y0) - corner(x0, y1) - corner(x1, y0) + corner(x1, y1)) as f32
+}
+
+/// The unit direction of equirect position `(u, v)` ∈ [0, 1]² (the reference's layout).
+pub fn equirect_direction(u: f32, v: f32) -> Vec3 {
+    let phi = (u - 0.5) * 2.0 * std::f32::consts::PI;
+    let theta = v * std::f32::consts::PI;
+    Vec3::new(
+        theta.sin() * phi.sin(),
+        theta.cos(),
+        -theta.sin() * phi.cos(),
+    )
+}
+
+/// The equirect position of a unit direction; the inverse of [`equirect_direction`].
+pub fn equirect_position(d: Vec3) -> (f32, f32) {
+    let d = d.normalize_or(Vec3::NEG_Z);
+    let theta = d.y.clamp(-1.0, 1.0).acos();
+    let phi = d.x.atan2(-d.z);
+    (
+        (phi / (2.0 * std::f32::consts::PI) + 0.5).rem_euclid(1.0),
+        theta / std::f32::consts::PI,
+    )
+}
+
+/// Projects a cube level's radiance onto SH9 (clamped and optionally windowed, see the module).
+pub fn sh9_from_cube(level: &CubeLevel, max_radiance: f32, window: f32) -> Sh9 {
+    let n = level.size as usize;
+    let mut proj = [[0.0f64; 3]; 9];
+    for f in 0..CUBE_FACES {
+        for j in 0..n {
+            for i in 0..n {
+                let d = cube_direction(f, (i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                let mut c = sanitize(level.texels[f * n * n + j * n + i], f32::MAX);
+                let y = luminance(c);
+                if y > max_radiance {
+                    c = c.map(|v| v * max_radiance / y);
+                }
+                let w = texel_solid_angle(i, j, n) as f64;
+                let basis = [
+                    0.282_095,
+                    0.488_603 * d.y,
+                    0.488_603 * d.z,
+                    0.488_603 * d.x,
+                    1.092_548 * d.x * d.y,
+                    1.092_548 * d.y * d.z,
+                    0.315_392 * (3.0 * d.z * d.z - 1.0),
+                    1.092_548 * d.x * d.z,
+                    0.546_274 * (d.x * d.x - d.y * d.y),
+                ];
+                for (p, b) in proj.iter_mut().zip(basis) {
+                    for k in 0..3 {
+                        p[k] += c[k] as f64 * b as f64 * w;
+                    }
+                }
+            }
+        }
+    }
+    let sinc = |x: f64| {
+        if x == 0.0 {
+            1.0
+        } else {
+            (std::f64::consts::PI * x).sin() / (std::f64::consts::PI * x)
+        }
+    };
+    let band = [0usize, 1, 1, 1, 2, 2, 2, 2, 2];
+    let mut radiance = [[0.0f32; 3]; 9];
+    for i in 0..9 {
+        let l = band[i] as f64;
+        let factor = 1.0 - window as f64 * (1.0 - sinc(l / 3.0));
+        radiance[i] = proj[i].map(|v| (v * factor) as f32);
+    }
+    Sh9::from_radiance_projection(radiance)
+}
+
+/// Resamples an equirect map into a cube level: texels covered by several map pixels average them
+/// (weighted by solid angle, so small bright sources keep their energy); the others take the
+/// nearest map pixel.
+fn equirect_to_cube(map: &Raster<[f32; 3]>, n: usize) -> CubeLevel {
+    let (w, h) = (map.width(), map.height());
+    let mut sum = vec![[0.0f64; 3]; CUBE_FACES * n * n];
+    let mut weight = vec![0.0f64; CUBE_FACES * n * n];
+    for y in 0..h {
+        let v = (y as f32 + 0.5) / h as f32;
+        let area = (v * std::f32::consts::PI).sin().max(1e-6) as f64;
+        for x in 0..w {
+            let d = equirect_direction((x as f32 + 0.5) / w as f32, v);
+            let (f, s, t) = cube_texel(d);
+            let idx = f * n * n
+                + ((t * n as f32) as usize).min(n - 1) * n
+                + ((s * n as f32) as usize).min(n - 1);
+            let c = map.get(x, y);
+            for k in 0..3 {
+                sum[idx][k] += c[k] as f64 * area;
+            }
+            weight[idx] += area;
+        }
+    }
+    let texels = (0..CUBE_FACES * n * n)
+        .map(|idx| {
+            if weight[idx] > 0.0 {
+                sum[idx].map(|v| (v / weight[idx]) as f32)
+            } else {
+                let (f, j, i) = (idx / (n * n), (idx / n) % n, idx % n);
+                let (u, v) = equirect_position(cube_direction(
+                    f,
+                    (i as f32 + 0.5) / n as f32,
+                    (j as f32 + 0.5) / n as f32,
+                ));
+                *map.get(
+                    ((u * w as f32) as usize).min(w - 1),
+                    ((v * h as f32) as usize).min(h - 1),
+                )
+            }
+        })
+        .collect();
+    CubeLevel {
+        size: n as u32,
+        texels,
+    }
+}
+
+/// Fills cells with zero weight by pull-push (see the module documentation).
+fn pull_push(values: &mut Raster<[f32; 3]>, weight: &mut Raster<f32>) {
+    let (w, h) = (values.width(), values.height());
+    if w <= 1 && h <= 1 {
+        return;
+    }
+    let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
+    let mut coarse = Raster::filled(cw, ch, [0.0f32; 3]);
+    let mut coarse_w = Raster::filled(cw, ch, 0.0f32);
+    for y in 0..h {
+        for x in 0..w {
+            let wt = *weight.get(x, y);
+            if wt > 0.0 {
+                let c = *values.get(x, y);
+                let acc = coarse.get_mut(x / 2, y / 2);
+                for k in 0..3 {
+                    acc[k] += c[k] * wt;
+                }
+                *coarse_w.get_mut(x / 2, y / 2) += wt;
+            }
+        }
+    }
+    for (c, wt) in coarse.pixels_mut().iter_mut().zip(coarse_w.pixels()) {
+        if *wt > 0.0 {
+            *c = c.map(|v| v / wt);
+        }
+    }
+    if coarse_w.pixels().iter().any(|v| *v <= 0.0) && coarse_w.pixels().iter().any(|v| *v > 0.0) {
+        pull_push(&mut coarse, &mut coarse_w);
+    }
+    for y in 0..h {
+        for x in 0..w {
+            if *weight.get(x, y) <= 0.0 && *coarse_w.get(x / 2, y / 2) > 0.0 {
+                *values.get_mut(x, y) = *coarse.get(x / 2, y / 2);
+                *weight.get_mut(x, y) = 1e-3;
+            }
+        }
+    }
+}
+
+impl Environment {
+    /// From a cube level of linear radiance (non-finite/negative texels sanitised).
+    ///
+    /// # Errors
+    /// `InvalidArgument` for a size of 0 or bad options; `SizeMismatch` for a wrong texel count.
+    pub fn from_cube(level: &CubeLevel, options: &EnvironmentOptions) -> Result<Environment> {
+        options.validate()?;
+        let n = level.size as usize;
+        if n == 0 || level.texels.len() != CUBE_FACES * n * n {
+            return Err(Error::SizeMismatch(format!(
+                "cube level of size {n} needs {} texels, got {}",
+                CUBE_FACES * n * n,
+                level.texels.len()
+            )));
+        }
+        let level = CubeLevel {
+            size: level.size,
+            texels: level
+                .texels
+                .iter()
+                .map(|c| sanitize(*c, HALF_MAX))
+                .collect(),
+        };
+        Ok(Environment {
+            sh9: sh9_from_cube(&level, options.max_radiance, options.sh_window),
+            cube: CubeMap {
+                levels: vec![level],
+            },
+            seen_fraction: 1.0,
+            source: EnvironmentSource::Map,
+        })
+    }
+
+    /// From an equirectangular HDR map (linear radiance; NaN/negative → 0, +inf → clamp).
+    ///
+    /// # Errors
+    /// `InvalidArgument` for a map smaller than 2×1 or bad options.
+    pub fn from_equirect(
+        map: &Raster<[f32; 3]>,
+        options: &EnvironmentOptions,
+    ) -> Result<Environment> {
+        options.validate()?;
+        let (w, h) = check_size("environment map", map)?;
+        if w < 2 {
+            return Err(Error::invalid(format!(
+                "environment map must be at least 2x1 pixels, got {w}x{h}"
+            )));
+        }
+        let clean = map.map(|c| sanitize(*c, HALF_MAX));
+        Environment::from_cube(
+            &equirect_to_cube(&clean, options.face_size as usize),
+            options,
+        )
+    }
+
+    /// The photo seen from `point` (camera frame, metres), with `lights` drawn in (see the module
+    /// documentation). `depth` in metres along the optical axis (NaN/inf = unknown: the pixel is
+    /// taken as infinitely far).
+    ///
+    /// # Errors
+    /// `InvalidArgument` for an empty photo, a non-finite point, an invalid light or bad options;
+    /// `SizeMismatch` when the depth or camera is not the photo's size.
+    pub fn from_photo(
+        photo: &Raster<[f32; 3]>,
+        depth: Option<&Raster<f32>>,
+        camera: &Camera,
+        point: Vec3,
+        lights: &[Light],
+        options: &EnvironmentOptions,
+    ) -> Result<Environment> {
+        options.validate()?;
+        camera.validate()?;
+        let (w, h) = check_size("photo", photo)?;
+        if (w, h) != (camera.width as usize, camera.height as usize) {
+            return Err(Error::SizeMismatch(format!(
+                "photo is {w}x{h} but the camera's image is {}x{}",
+                camera.width, camera.height
+            )));
+        }
+        if let Some(d) = depth {
+            check_same("depth map", photo, d)?;
+        }
+        if !point.is_finite() {
+            return Err(Error::invalid(format!(
+                "environment point must be finite, got {point}"
+            )));
+        }
+        for l in lights {
+            l.validate()?;
+        }
+        let ldr = photo
+            .pixels()
+            .iter()
+            .all(|c| c.iter().all(|v| !v.is_finite() || *v <= 1.0 + 1e-3));
+        let n = options.face_size as usize;
+        let (ew, eh) = (4 * n, 2 * n);
+        let mut values = Raster::filled(ew, eh, [0.0f32; 3]);
+        let mut nearest = Raster::filled(ew, eh, f32::INFINITY);
+        let mut weight = Raster::filled(ew, eh, 0.0f32);
+        for y in 0..h {
+            for x in 0..w {
+                let (u, v) = (x as f32 + 0.5, y as f32 + 0.5);
+                let z = depth.map_or(f32::NAN, |d| *d.get(x, y));
+                let (dir, dist) = match camera.unproject(u, v, z) {
+                    Some(q) => {
+                        let d = q - point;
+                        (d.normalize_or_zero(), d.length())
+                    }
+                    None => (camera.ray_direction(u, v), f32::MAX),
+                };
+                if dir == Vec3::ZERO || !dir.is_finite() {
+                    continue;
+                }
+                let c = *photo.get(x, y);
+                let c = if ldr {
+                    inverse_tone_map(c, options.ldr_peak)
+                } else {
+                    sanitize(c, HALF_MAX)
+                };
+                let (eu, ev) = equirect_position(dir);
+                let (cx, cy) = (
+                    ((eu * ew as f32) as usize).min(ew - 1),
+                    ((ev * eh as f32) as usize).min(eh - 1),
+                );
+                if dist < *nearest.get(cx, cy) * 0.97 {
+                    // Clearly nearer: replaces what was behind.
+                    *nearest.get_mut(cx, cy) = dist;
+                    *values.get_mut(cx, cy) = c;
+                    *weight.get_mut(cx, cy) = 1.0;
+                } else if dist <= *nearest.get(cx, cy) * 1.03 {
+                    // The same surface: average.
+                    let wt = *weight.get(cx, cy);
+                    let acc = values.get_mut(cx, cy);
+                    for k in 0..3 {
+                        acc[k] = (acc[k] * wt + c[k]) / (wt + 1.0);
+                    }
+                    *weight.get_mut(cx, cy) = wt + 1.0;
+                }
+            }
+        }
+        let mut seen = 0.0f64;
+        let mut total = 0.0f64;
+        for y in 0..eh {
+            let a = (((y as f32 + 0.5) / eh as f32) * std::f32::consts::PI).sin() as f64;
+            for x in 0..ew {
+                total += a;
+                if *weight.get(x, y) > 0.0 {
+                    seen += a;
+                }
+            }
+        }
+        if seen > 0.0 {
+            pull_push(&mut values, &mut weight);
+        }
+        let mut level = equirect_to_cube(&values, n);
+        for light in lights {
+            draw_light(&mut level, light, point);
+        }
+        let mut env = Environment::from_cube(&level, options)?;
+        env.seen_fraction = (seen / total) as f32;
+        env.source = EnvironmentSource::Photo;
+        Ok(env)
+    }
+
+    /// The GGX-prefiltered mip chain of the cube ([`prefilter_ggx`]), `levels` levels with
+    /// `samples` samples per texel. Computed on request only: diffuse-only materials need the
+    /// SH alone.
+    ///
+    /// # Errors
+    /// As [`prefilter_ggx`].
+    pub fn prefiltered(&self, levels: usize, samples: u32) -> Result<CubeMap> {
+        let base = self
+            .cube
+            .levels
+            .first()
+            .ok_or_else(|| Error::Internal("environment has no cube level".into()))?;
+        prefilter_ggx(base, levels, samples)
+    }
+
+    /// The cube converted to half floats RGBA (alpha 1), face after face, for an RGBA16F texture.
+    pub fn cube_rgba16f(&self) -> Vec<[half::f16; 4]> {
+        self.cube
+            .levels
+            .first()
+            .map(|l| {
+                l.texels
+                    .iter()
+                    .map(|c| {
+                        let h = |v: f32| half::f16::from_f32(v.clamp(0.0, HALF_MAX));
+                        [h(c[0]), h(c[1]), h(c[2]), half::f16::ONE]
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+}
+
+/// Draws a light into a cube level as a disc of its solid angle seen from `point`, whose radiance
+/// gives the light's irradiance exactly (texel solid angles are exact). The disc is at least a
+/// texel and a half wide, so it cannot fall between texels; its radiance is lowered to keep the
+/// irradiance when it is widened. Texels keep the brighter of their value and the light's.
+fn draw_light(level: &mut CubeLevel, light: &Light, point: Vec3) {
+    let n = level.size as usize;
+    let (towards, dist) = light.towards(point);
+    let (irradiance, radius_rad) = match light.kind {
+        LightKind::Directional => (light.intensity, (light.size.to_radians() / 2.0).max(1e-4)),
+        LightKind::Point | LightKind::Area => {
+            let d = dist.max(1e-3);
+            // Facing factor of an area disc: cosine between its axis and the way to the point.
+            let facing = if light.kind == LightKind::Area {
+                (-towards)
+                    .dot(Vec3::from(light.direction).normalize_or_zero())
+                    .max(0.0)
+            } else {
+                1.0
+            };
+            (
+                light.intensity.map(|i| i * facing / (d * d)),
+                (light.size / 2.0 / d).atan().max(1e-4),
+            )
+        }
+    };
+    let texel = 2.0 / n as f32;
+    let cos_r = radius_rad.max(1.5 * texel).cos();
+    let mut cells = Vec::new();
+    let mut omega = 0.0f32;
+    for f in 0..CUBE_FACES {
+        for j in 0..n {
+            for i in 0..n {
+                let d = cube_direction(f, (i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                if d.dot(towards) >= cos_r {
+                    cells.push(f * n * n + j * n + i);
+                    omega += texel_solid_angle(i, j, n);
+                }
+            }
+        }
+    }
+    if cells.is_empty() || omega <= 0.0 {
+        return;
+    }
+    let radiance = irradiance.map(|e| (e / omega).min(HALF_MAX));
+    for idx in cells {
+        let c = &mut level.texels[idx];
+        for k in 0..3 {
+            c[k] = c[k].max(radiance[k]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f32::consts::PI;
+
+    #[test]
+    fn constant_map_gives_constant_sh_and_cube() {
+        let env = Environment::from_equirect(
+            &Raster::filled(64, 32, [0.5f32, 1.0, 2.0]),
+            &Default::default(),
+        )
+        .unwrap();
+        for n in [Vec3::X, -Vec3::Y, Vec3::new(0.3, 0.5, -0.8).normalize()] {
+            let d = env.sh9.diffuse_radiance(n);
+            assert!(
+                (d[0] - 0.5).abs() < 0.01 && (d[2] - 2.0).abs() < 0.02,
+                "{d:?}"
+            );
+        }
+        assert!(env.cube.levels[0]
+            .texels
+            .iter()
+            .all(|t| (t[1] - 1.0).abs() < 1e-5));
+    }
+
+    #[test]
+    fn sky_above_ground_below_gives_the_analytic_irradiance() {
+        // Radiance 1 from the upper hemisphere only: irradiance on an up-facing surface is π
+        // (diffuse radiance 1), on a down-facing one 0, on a vertical one π/2 (0.5).
+        let map = Raster::from_fn(256, 128, |_, y| if y < 64 { [1.0f32; 3] } else { [0.0; 3] });
+        let env = Environment::from_equirect(&map, &Default::default()).unwrap();
+        let up = env.sh9.diffuse_radiance(Vec3::Y)[0];
+        let side = env.sh9.diffuse_radiance(Vec3::X)[0];
+        let down = env.sh9.diffuse_radiance(-Vec3::Y)[0];
+        // A 9-term fit of a step: within a few percent of the truth.
+        assert!((up - 1.0).abs() < 0.06, "{up}");
+        assert!((side - 0.5).abs() < 0.03, "{side}");
+        assert!(down < 0.06, "{down}");
+    }
+
+    #[test]
+    fn a_tiny_megawatt_sun_stays_finite_and_bounded() {
+        let mut map = Raster::filled(512, 256, [0.1f32; 3]);
+        *map.get_mut(300, 60) = [1e6; 3];
+        *map.get_mut(10, 10) = [f32::NAN, f32::INFINITY, -3.0];
+        let sun = equirect_direction(300.5 / 512.0, 60.5 / 256.0);
+        for window in [0.0, 1.0] {
+            let options = EnvironmentOptions {
+                sh_window: window,
+                ..Default::default()
+            };
+            let env = Environment::from_equirect(&map, &options).unwrap();
+            assert!(env.sh9.to_array().iter().all(|v| v.is_finite()));
+            // Sample the irradiance over the sphere: bounded by the clamp's contribution, and
+            // the ringing opposite the sun stays small relative to the peak.
+            let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+            for i in 0..500 {
+                let z = 1.0 - 2.0 * (i as f32 + 0.5) / 500.0;
+                let phi = i as f32 * 2.399_963;
+                let r = (1.0 - z * z).sqrt();
+                let n = Vec3::new(r * phi.cos(), z, r * phi.sin());
+                let p = super::super::model::sh9_basis_polynomials(n);
+                let v: f32 = env
+                    .sh9
+                    .coefficients
+                    .iter()
+                    .zip(p)
+                    .map(|(c, w)| c[0] * w)
+                    .sum();
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+            // One clamped texel of 1000 over ~4π/24576 sr adds at most ~0.05 to the radiance.
+            assert!(hi < 0.1 + 0.2, "window {window}: max {hi}");
+            assert!(lo > -0.05 * hi, "window {window}: min {lo} vs max {hi}");
+            // The brightest direction is the sun's.
+            let towards = env.sh9.diffuse_radiance(sun)[0];
+            assert!(towards >= 0.95 * hi);
+            // The cube keeps the sun (up to half-float range) for glossy reflections.
+            let peak = env.cube.levels[0]
+                .texels
+                .iter()
+                .map(|t| t[0])
+                .fold(0.0, f32::max);
+            assert!(peak > 1000.0 && peak <= HALF_MAX);
+        }
+    }
+
+    #[test]
+    fn photo_reprojection_sees_the_floor_below_and_fills_behind() {
+        // A camera 1 m above a floor (y = −1) of radiance 0.3; the sky (no depth) is 0.7.
+        let camera = Camera::from_focal(40.0, 80, 60).unwrap();
+        let depth = Raster::from_fn(80, 60, |_, y| {
+            let dv = y as f32 + 0.5 - camera.cy;
+            if dv > 0.5 {
+                camera.fy / dv
+            } else {
+                f32::NAN
+            }
+        });
+        let photo = Raster::from_fn(80, 60, |_, y| {
+            if (y as f32 + 0.5) > camera.cy + 0.5 {
+                [0.3f32; 3]
+            } else {
+                [0.7; 3]
+            }
+        });
+        let point = Vec3::new(0.0, -0.9, -3.0);
+        let env = Environment::from_photo(
+            &photo,
+            Some(&depth),
+            &camera,
+            point,
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        assert!(
+            env.seen_fraction > 0.1 && env.seen_fraction < 0.9,
+            "{}",
+            env.seen_fraction
+        );
+        let down = env.sh9.diffuse_radiance(-Vec3::Y)[0];
+        let up = env.sh9.diffuse_radiance(Vec3::Y)[0];
+        assert!((down - 0.3).abs() < 0.08, "{down}");
+        assert!((up - 0.7).abs() < 0.12, "{up}");
+        // Drawing a directional light adds its irradiance on a surface facing it.
+        let sun = Light::directional([0.0, -1.0, 0.0], 2.0, [PI; 3]);
+        let lit = Environment::from_photo(
+            &photo,
+            Some(&depth),
+            &camera,
+            point,
+            &[sun],
+            &Default::default(),
+        )
+        .unwrap();
+        let gain = lit.sh9.diffuse_radiance(Vec3::Y)[0] - up;
+        assert!((gain - 1.0).abs() < 0.1, "{gain}");
+    }
+
+    #[test]
+    fn ldr_expansion_is_continuous_and_reaches_the_peak() {
+        assert_eq!(inverse_tone_map([0.5; 3], 8.0), [0.5; 3]);
+        assert!((inverse_tone_map([1.0; 3], 8.0)[0] - 8.0).abs() < 1e-5);
+        assert!((inverse_tone_map([0.8001; 3], 8.0)[0] - 0.8001).abs() < 1e-3);
+        assert_eq!(
+            inverse_tone_map([f32::NAN, -1.0, 3.0], 8.0)[0..2],
+            [0.0, 0.0]
+        );
+    }
+
+    #[test]
+    fn bad_input_is_named() {
+        let e = Environment::from_equirect(&Raster::filled(1, 1, [0.0f32; 3]), &Default::default())
+            .unwrap_err();
+        assert!(e.to_string().contains("environment map"));
+        let bad = EnvironmentOptions {
+            face_size: 2,
+            ..Default::default()
+        };
+        assert!(
+            Environment::from_equirect(&Raster::filled(8, 4, [0.0f32; 3]), &bad)
+                .unwrap_err()
+                .to_string()
+                .contains("face_size")
+        );
+        let camera = Camera::from_focal(10.0, 8, 6).unwrap();
+        let e = Environment::from_photo(
+            &Raster::filled(8, 6, [0.0f32; 3]),
+            None,
+            &camera,
+            Vec3::NAN,
+            &[],
+            &Default::default(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("point"));
+        // Black and tiny photos give a finite (black) environment.
+        let env = Environment::from_photo(
+            &Raster::filled(8, 6, [0.0f32; 3]),
+            None,
+            &camera,
+            Vec3::ZERO,
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        assert!(env
+            .sh9
+            .to_array()
+            .iter()
+            .all(|v| v.is_finite() && v.abs() < 1e-6));
+        let one = Camera::from_focal(1.0, 1, 1).unwrap();
+        let env = Environment::from_photo(
+            &Raster::filled(1, 1, [1e6f32; 3]),
+            None,
+            &one,
+            Vec3::ZERO,
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        assert!(env.sh9.to_array().iter().all(|v| v.is_finite()));
+        assert_eq!(env.cube_rgba16f().len(), 6 * 64 * 64);
+    }
+}

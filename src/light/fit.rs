@@ -1,0 +1,1018 @@
+//! Lights out of view, by inverse rendering (thesis §3.3.4, extended): the directional light and
+//! ambient term that best explain the shading of the photo's surfaces given their normals, in
+//! agreement with the cast shadows of the shadow mask; in-view sources are re-scaled on the way.
+//!
+//! Model, per sample pixel `i` on a continuous region `s` (Lambertian, one albedo per region):
+//! `Y_i = ρ_s · (A + Σ_j E_j · g_j(i))`, with `g_j = max(0, n·l_j) · V_j` for a directional light
+//! and `max(0, n·l_j) · V_j / r_j²` (times the disc's facing cosine) for a light at a position.
+//! Visibility `V_j` is traced through the depth map (a screen-space ray march from the point
+//! towards the light: occluded when the ray passes behind a visible surface by less than a
+//! thickness), so cast shadows are part of the model: a direction whose shadows fall where the
+//! photo has none explains the shading worse. For a fixed set of lights the fit alternates between
+//! the light intensities `E`, `A` (non-negative least squares) and the albedos `ρ_s`. The
+//! direction of the out-of-view light is searched over the sphere above the horizon (Fibonacci
+//! points, then a finer set around the best), scoring the relative RMS residual plus the
+//! disagreement between the predicted cast shadow and the shadow mask. Its angular size is chosen
+//! among a few cone widths by the same score (wider cones give softer predicted shadows).
+//!
+//! Albedo and light intensity are only known up to a common factor: the fit fixes the median
+//! region albedo to `FitOptions::albedo` (0.5 by default). Colours come from the same fit per
+//! channel under the grey-world assumption (the median albedo is grey).
+//!
+//! When nothing can be inferred (too few usable pixels, or no direction explains the shading
+//! better than ambient light alone), the thesis' fallback is used: one light above the scene,
+//! and [`LightFit::fallback_used`] says so, so the caller can warn.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::filters::{check_same, check_size, luminance};
+use super::model::{Light, LightKind};
+use super::shadow_mask::NO_REGION;
+use crate::camera::Camera;
+use crate::error::{Error, Result};
+use crate::image::Raster;
+
+/// What the fit looks at. Every raster has the photo's size.
+#[derive(Debug, Clone, Copy)]
+pub struct FitInputs<'a> {
+    /// Linear RGB photo (1.0 = white).
+    pub photo: &'a Raster<[f32; 3]>,
+    /// Depth along the optical axis, metres (NaN/inf = unknown).
+    pub depth: &'a Raster<f32>,
+    /// Unit normals in the camera frame (zero = unknown).
+    pub normals: &'a Raster<[f32; 3]>,
+    /// Continuous regions ([`crate::light::continuity_regions`]); [`NO_REGION`] pixels are not
+    /// used.
+    pub regions: &'a Raster<u32>,
+    /// Soft shadow mask in [0, 1] ([`crate::light::shadow_mask`]), if any.
+    pub shadow_mask: Option<&'a Raster<f32>>,
+    /// The camera.
+    pub camera: &'a Camera,
+    /// Gravity up, camera frame.
+    pub up: [f32; 3],
+}
+
+/// Options of [`fit_lights`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitOptions {
+    /// At most this many sample pixels (≥ 100).
+    pub max_samples: usize,
+    /// Candidate directions in the coarse search (≥ 16).
+    pub directions: usize,
+    /// The assumed median albedo of the regions, in (0, 1].
+    pub albedo: f32,
+    /// Weight of the shadow-mask disagreement in the score (≥ 0).
+    pub shadow_weight: f32,
+    /// Relative improvement over ambient (plus in-view lights) that a directional light must
+    /// bring to be kept, in [0, 1).
+    pub min_improvement: f32,
+    /// Where the main light is judged from (camera frame, metres): the light giving the most
+    /// irradiance there is the main one. `None`: the median sample point.
+    pub insertion_point: Option<[f32; 3]>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            max_samples: 4000,
+            directions: 300,
+            albedo: 0.5,
+            shadow_weight: 0.5,
+            min_improvement: 0.1,
+            insertion_point: None,
+        }
+    }
+}
+
+impl FitOptions {
+    /// Checks ranges.
+    ///
+    /// # Errors
+    /// `InvalidArgument` naming the option out of range.
+    pub fn validate(&self) -> Result<()> {
+        if self.max_samples < 100 || self.max_samples > 1_000_000 {
+            return Err(Error::invalid(format!(
+                "fit max_samples must be in 100..=1000000, got {}",
+                self.max_samples
+            )));
+        }
+        if self.directions < 16 || self.directions > 100_000 {
+            return Err(Error::invalid(format!(
+                "fit directions must be in 16..=100000, got {}",
+                self.directions
+            )));
+        }
+        if !(self.albedo > 0.0 && self.albedo <= 1.0) {
+            return Err(Error::invalid(format!(
+                "fit albedo must be in (0, 1], got {}",
+                self.albedo
+            )));
+        }
+        if !(self.shadow_weight >= 0.0 && self.shadow_weight.is_finite()) {
+            return Err(Error::invalid(format!(
+                "fit shadow_weight must be finite and >= 0, got {}",
+                self.shadow_weight
+            )));
+        }
+        if !(0.0..1.0).contains(&self.min_improvement) {
+            return Err(Error::invalid(format!(
+                "fit min_improvement must be in [0, 1), got {}",
+                self.min_improvement
+            )));
+        }
+        if let Some(p) = self.insertion_point {
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err(Error::invalid(format!(
+                    "fit insertion_point must be finite, got {p:?}"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The result of [`fit_lights`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LightFit {
+    /// The light that gives the most irradiance at the insertion point.
+    pub main: Light,
+    /// Uniform ambient light as the diffuse radiance of a white surface (linear RGB).
+    pub ambient: [f32; 3],
+    /// Every light: the in-view sources (re-scaled) and the fitted out-of-view light, if kept.
+    pub lights: Vec<Light>,
+    /// True when nothing could be inferred and the main light is the "one light above the
+    /// scene" fallback.
+    pub fallback_used: bool,
+    /// Relative RMS error of the shading model on the samples (luminance), ≥ 0.
+    pub residual: f32,
+    /// Mean disagreement between predicted cast shadows and the mask, in [0, 1] (0 without one).
+    pub shadow_disagreement: f32,
+    /// Number of sample pixels used.
+    pub samples: usize,
+}
+
+/// Largest relative residual of a fit that is still taken as an inference of the light.
+const MAX_EXPLAINED_RESIDUAL: f64 = 0.5;
+
+struct Sample {
+    p: Vec3,
+    n: Vec3,
+    rgb: [f32; 3],
+    region: usize,
+    mask: f32,
+}
+
+/// Screen-space visibility from `p` (normal `n`) towards `l` up to `max_dist` metres.
+fn visible(depth: &Raster<f32>, camera: &Camera, p: Vec3, n: Vec3, l: Vec3, max_dist: f32) -> bool {
+    const STEPS: usize = 40;
+    let z0 = -p.z;
+    let origin = p + n * (0.01 * z0 + 0.005);
+    let t0 = (0.01 * z0).max(0.01);
+    if max_dist <= t0 {
+        return true;
+    }
+    let ratio = (max_dist / t0).powf(1.0 / (STEPS - 1) as f32);
+    let mut t = t0;
+    for _ in 0..STEPS {
+        let q = origin + l * t;
+        t *= ratio;
+        let Some((uv, zq)) = camera.project(q) else {
+            return true;
+        };
+        if uv.x < 0.0 || uv.y < 0.0 || uv.x >= camera.width as f32 || uv.y >= camera.height as f32 {
+            return true;
+        }
+        let zs = *depth.get(uv.x as usize, uv.y as usize);
+        if zs.is_finite() && zs > 0.0 && zq > zs * 1.01 + 0.01 && zq < zs * 1.15 + 0.05 {
+            return false;
+        }
+    }
+    true
+}
+
+/// Geometric term of a light at a sample (see the module documentation).
+fn term(light: &Light, s: &Sample, depth: &Raster<f32>, camera: &Camera, reach: f32) -> f32 {
+    let (l, dist) = light.towards(s.p);
+    let cos = s.n.dot(l);
+    if cos <= 0.0 {
+        return 0.0;
+    }
+    let (falloff, max_dist) = match light.kind {
+        LightKind::Directional => (1.0, reach),
+        LightKind::Point | LightKind::Area => {
+            let facing = if light.kind == LightKind::Area {
+                (-l).dot(Vec3::from(light.direction).normalize_or_zero())
+                    .max(0.0)
+            } else {
+                1.0
+            };
+            (facing / (dist * dist).max(1e-4), (dist * 0.95).min(reach))
+        }
+    };
+    if falloff <= 0.0 || !visible(depth, camera, s.p, s.n, l, max_dist) {
+        return 0.0;
+    }
+    cos * falloff
+}
+
+/// Solves the augmented system `[A | b]` (Gauss–Jordan with partial pivoting; a singular column
+/// gets 0).
+fn solve(mut a: Vec<Vec<f64>>) -> Vec<f64> {
+    let d = a.len();
+    for (i, row) in a.iter_mut().enumerate() {
+        row[i] += 1e-12 * (1.0 + row[i].abs());
+    }
+    for col in 0..d {
+        let pivot = (col..d)
+            .max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs()))
+            .unwrap_or(col);
+        a.swap(col, pivot);
+        let p = a[col][col];
+        if p.abs() < 1e-300 {
+            continue;
+        }
+        for r in 0..d {
+            if r != col {
+                let f = a[r][col] / p;
+                let pivot_row = a[col].clone();
+                for (x, y) in a[r][col..=d].iter_mut().zip(&pivot_row[col..=d]) {
+                    *x -= f * y;
+                }
+            }
+        }
+    }
+    (0..d)
+        .map(|i| {
+            let v = if a[i][i].abs() > 1e-300 {
+                a[i][d] / a[i][i]
+            } else {
+                0.0
+            };
+            if v.is_finite() {
+                v
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// Result of the alternating fit for one channel.
+struct ChannelFit {
+    /// Intensities per light, then the ambient.
+    x: Vec<f64>,
+    residual: f64,
+}
+
+/// Residual of `y = ρ_region · (G x)` with each region's best albedo (variable projection: for
+/// fixed `x` the albedos are a closed-form least-squares solution), and those albedos.
+fn projected(
+    g: &[Vec<f32>],
+    y: &[f32],
+    regions: &[usize],
+    n_regions: usize,
+    x: &[f64],
+) -> (f64, Vec<f64>) {
+    let mut ys = vec![0.0f64; n_regions];
+    let mut ss = vec![0.0f64; n_regions];
+    let mut yy = vec![0.0f64; n_regions];
+    for ((row, &yi), &s) in g.iter().zip(y).zip(regions) {
+        let shade: f64 = row.iter().zip(x).map(|(a, b)| *a as f64 * b).sum();
+        ys[s] += yi as f64 * shade;
+        ss[s] += shade * shade;
+        yy[s] += (yi as f64).powi(2);
+    }
+    let mut err = 0.0;
+    let rho: Vec<f64> = (0..n_regions)
+        .map(|s| {
+            let r = if ss[s] > 1e-15 {
+                (ys[s] / ss[s]).max(0.0)
+            } else {
+                0.0
+            };
+            err += (yy[s] - 2.0 * r * ys[s] + r * r * ss[s]).max(0.0);
+            r
+        })
+        .collect();
+    (err, rho)
+}
+
+/// Fits `y = ρ_region · (G x)` with x ≥ 0 (the last column of G is the ambient's 1). The scale
+/// of `x` against `ρ` is free, so the ambient is held at 1 while each light's intensity is found
+/// by golden-section search over `x_j = c_j · tan(u·π/2)`, u ∈ [0, 1) (three rounds, cyclically);
+/// then the scale is fixed by the median albedo.
+fn alternate(
+    g: &[Vec<f32>],
+    y: &[f32],
+    regions: &[usize],
+    n_regions: usize,
+    albedo: f32,
+) -> ChannelFit {
+    let k = g.first().map_or(1, |r| r.len());
+    let mut x = vec![0.0f64; k];
+    x[k - 1] = 1.0;
+    // Typical size of each light's term, so that u = 0.5 means "as bright as the ambient".
+    let scale: Vec<f64> = (0..k - 1)
+        .map(|j| {
+            let (sum, n) = g.iter().fold((0.0f64, 0usize), |(s, n), r| {
+                if r[j] > 0.0 {
+                    (s + r[j] as f64, n + 1)
+                } else {
+                    (s, n)
+                }
+            });
+            if n > 0 && sum > 0.0 {
+                n as f64 / sum
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    for _ in 0..3 {
+        for j in 0..k - 1 {
+            let eval = |u: f64, x: &mut Vec<f64>| {
+                x[j] = scale[j] * (u * std::f64::consts::FRAC_PI_2).tan();
+                projected(g, y, regions, n_regions, x).0
+            };
+            let (mut a, mut b) = (0.0f64, 0.999f64);
+            let phi = 0.618_033_988_75;
+            let mut xs = x.clone();
+            let (mut c, mut d) = (b - phi * (b - a), a + phi * (b - a));
+            let (mut fc, mut fd) = (eval(c, &mut xs), eval(d, &mut xs));
+            for _ in 0..40 {
+                if fc < fd {
+                    b = d;
+                    d = c;
+                    fd = fc;
+                    c = b - phi * (b - a);
+                    fc = eval(c, &mut xs);
+                } else {
+                    a = c;
+                    c = d;
+                    fc = fd;
+                    d = a + phi * (b - a);
+                    fd = eval(d, &mut xs);
+                }
+            }
+            // Zero is a candidate of its own (the light may not be needed).
+            let u = if eval(0.0, &mut xs) <= fc.min(fd) {
+                0.0
+            } else {
+                (a + b) / 2.0
+            };
+            x[j] = scale[j] * (u * std::f64::consts::FRAC_PI_2).tan();
+        }
+    }
+    let (err, rho) = projected(g, y, regions, n_regions, &x);
+    let total: f64 = y.iter().map(|v| (*v as f64).powi(2)).sum();
+    // Fix the scale: the sample-weighted median albedo becomes `albedo`.
+    let mut per_sample: Vec<f64> = regions.iter().map(|&s| rho[s]).collect();
+    let median = if per_sample.is_empty() {
+        0.0
+    } else {
+        let mid = per_sample.len() / 2;
+        *per_sample.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    if median > 1e-12 {
+        let s = median / albedo as f64;
+        x.iter_mut().for_each(|v| *v *= s);
+    } else {
+        x.iter_mut().for_each(|v| *v = 0.0);
+    }
+    ChannelFit {
+        x,
+        residual: if total > 0.0 {
+            (err / total).sqrt()
+        } else {
+            0.0
+        },
+    }
+}
+
+/// [`alternate`], then again without the 10 % of samples the first fit explains worst: shadow
+/// edges a pixel off and unmodelled highlights would otherwise pull the light's contrast down.
+fn trimmed(
+    g: &[Vec<f32>],
+    y: &[f32],
+    regions: &[usize],
+    n_regions: usize,
+    albedo: f32,
+) -> ChannelFit {
+    let first = alternate(g, y, regions, n_regions, albedo);
+    let (_, rho) = projected(g, y, regions, n_regions, &first.x);
+    let mut err: Vec<(f64, usize)> = g
+        .iter()
+        .zip(y)
+        .zip(regions)
+        .enumerate()
+        .map(|(i, ((row, &yi), &s))| {
+            let shade: f64 = row.iter().zip(&first.x).map(|(a, b)| *a as f64 * b).sum();
+            ((yi as f64 - rho[s] * shade).abs(), i)
+        })
+        .collect();
+    err.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let keep = err.len() * 9 / 10;
+    if keep < 20 {
+        return first;
+    }
+    let idx: Vec<usize> = err[..keep].iter().map(|e| e.1).collect();
+    let g2: Vec<Vec<f32>> = idx.iter().map(|&i| g[i].clone()).collect();
+    let y2: Vec<f32> = idx.iter().map(|&i| y[i]).collect();
+    let r2: Vec<usize> = idx.iter().map(|&i| regions[i]).collect();
+    let second = alternate(&g2, &y2, &r2, n_regions, albedo);
+    ChannelFit {
+        x: second.x,
+        residual: first.residual,
+    }
+}
+
+/// Fibonacci points on the unit sphere with `d · up ≥ min_up`.
+fn fibonacci(count: usize, up: Vec3, min_up: f32) -> Vec<Vec3> {
+    let (tx, ty) = {
+        let t = if up.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
+        let x = t.cross(up).normalize();
+        (x, up.cross(x))
+    };
+    // Enough points on the whole sphere that about `count` land in the cap.
+    let total = ((2.0 * count as f32) / (1.0 - min_up).max(0.05)).ceil() as usize;
+    (0..total)
+        .filter_map(|i| {
+            let z = 1.0 - 2.0 * (i as f32 + 0.5) / total as f32;
+            if z < min_up {
+                return None;
+            }
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = i as f32 * 2.399_963_2;
+            Some(tx * r * phi.cos() + ty * r * phi.sin() + up * z)
+        })
+        .collect()
+}
+
+/// Fits the lights (see the module documentation). `in_view` are the sources found in the photo
+/// ([`crate::light::detect_sources`]); their positions are kept and their intensities re-fitted.
+///
+/// # Errors
+/// `SizeMismatch` when a raster is not the photo's size or the camera's; `InvalidArgument` for an
+/// empty photo, bad options, a bad camera, a zero up vector or an invalid in-view light.
+pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -> Result<LightFit> {
+    options.validate()?;
+    inputs.camera.validate()?;
+    let (w, h) = check_size("photo", inputs.photo)?;
+    if (w, h) != (inputs.camera.width as usize, inputs.camera.height as usize) {
+        return Err(Error::SizeMismatch(format!(
+            "photo is {w}x{h} but the camera's image is {}x{}",
+            inputs.camera.width, inputs.camera.height
+        )));
+    }
+    check_same("depth map", inputs.photo, inputs.depth)?;
+    check_same("normal map", inputs.photo, inputs.normals)?;
+    check_same("region map", inputs.photo, inputs.regions)?;
+    if let Some(m) = inputs.shadow_mask {
+        check_same("shadow mask", inputs.photo, m)?;
+    }
+    let up = Vec3::from(inputs.up);
+    if !up.is_finite() || up.length() < 1e-6 {
+        return Err(Error::invalid(format!(
+            "fit up must be a finite non-zero vector, got {:?}",
+            inputs.up
+        )));
+    }
+    let up = up.normalize();
+    for l in in_view {
+        l.validate()?;
+    }
+
+    // Samples on a regular grid.
+    let stride = ((w * h) as f64 / options.max_samples as f64)
+        .sqrt()
+        .ceil()
+        .max(1.0) as usize;
+    let mut region_index = std::collections::HashMap::new();
+    let mut samples = Vec::new();
+    for y in (stride / 2..h).step_by(stride) {
+        for x in (stride / 2..w).step_by(stride) {
+            let region = *inputs.regions.get(x, y);
+            let n = Vec3::from(*inputs.normals.get(x, y));
+            let rgb = *inputs.photo.get(x, y);
+            if region == NO_REGION || !n.is_finite() || (n.length() - 1.0).abs() > 0.05 {
+                continue;
+            }
+            if !rgb.iter().all(|v| v.is_finite() && *v >= 0.0)
+                || rgb.iter().any(|v| *v >= 0.98) && rgb.iter().all(|v| *v <= 1.0)
+            {
+                // Clipped pixels carry no shading information.
+                continue;
+            }
+            let Some(p) =
+                inputs
+                    .camera
+                    .unproject(x as f32 + 0.5, y as f32 + 0.5, *inputs.depth.get(x, y))
+            else {
+                continue;
+            };
+            let next = region_index.len();
+            let r = *region_index.entry(region).or_insert(next);
+            let mask = inputs.shadow_mask.map_or(0.0, |m| {
+                let v = *m.get(x, y);
+                if v.is_finite() {
+                    v.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            });
+            samples.push(Sample {
+                p,
+                n: n.normalize(),
+                rgb,
+                region: r,
+                mask,
+            });
+        }
+    }
+    // Drop regions with too few samples to have an albedo of their own.
+    let mut counts = vec![0usize; region_index.len()];
+    for s in &samples {
+        counts[s.region] += 1;
+    }
+    samples.retain(|s| counts[s.region] >= 8);
+    let mut remap = vec![usize::MAX; counts.len()];
+    let mut n_regions = 0;
+    for s in &mut samples {
+        if remap[s.region] == usize::MAX {
+            remap[s.region] = n_regions;
+            n_regions += 1;
+        }
+        s.region = remap[s.region];
+    }
+    let regions: Vec<usize> = samples.iter().map(|s| s.region).collect();
+    let luma: Vec<f32> = samples.iter().map(|s| luminance(s.rgb)).collect();
+    let mut depths: Vec<f32> = samples.iter().map(|s| -s.p.z).collect();
+    let centre = match options.insertion_point {
+        Some(p) => Vec3::from(p),
+        None if !samples.is_empty() => {
+            let mut xs: Vec<f32> = samples.iter().map(|s| s.p.x).collect();
+            let mut ys: Vec<f32> = samples.iter().map(|s| s.p.y).collect();
+            let mut zs: Vec<f32> = samples.iter().map(|s| s.p.z).collect();
+            let med = |v: &mut Vec<f32>| {
+                let mid = v.len() / 2;
+                *v.select_nth_unstable_by(mid, f32::total_cmp).1
+            };
+            Vec3::new(med(&mut xs), med(&mut ys), med(&mut zs))
+        }
+        None => Vec3::new(0.0, 0.0, -1.0),
+    };
+    let reach = if depths.is_empty() {
+        1.0
+    } else {
+        let mid = depths.len() / 2;
+        2.0 * *depths.select_nth_unstable_by(mid, f32::total_cmp).1
+    };
+    let depth = inputs.depth;
+    let camera = inputs.camera;
+
+    // Columns of the in-view lights (fixed positions).
+    let fixed: Vec<Vec<f32>> = in_view
+        .iter()
+        .map(|l| {
+            samples
+                .par_iter()
+                .map(|s| term(l, s, depth, camera, reach))
+                .collect()
+        })
+        .collect();
+    let build = |extra: Option<&Vec<f32>>| -> Vec<Vec<f32>> {
+        (0..samples.len())
+            .map(|i| {
+                let mut row: Vec<f32> = fixed.iter().map(|c| c[i]).collect();
+                if let Some(e) = extra {
+                    row.push(e[i]);
+                }
+                row.push(1.0);
+                row
+            })
+            .collect()
+    };
+    let fallback = |samples_used: usize| -> LightFit {
+        // The thesis' fallback: one light above the scene, half of the mean brightness from it.
+        let mean = if luma.is_empty() {
+            [0.0; 3]
+        } else {
+            let mut m = [0.0f32; 3];
+            for s in &samples {
+                for (acc, v) in m.iter_mut().zip(s.rgb) {
+                    *acc += v / samples.len() as f32;
+                }
+            }
+            m
+        };
+        let ambient = mean.map(|v| 0.5 * v / options.albedo);
+        let mut main = Light::directional(
+            (-up).to_array(),
+            30.0,
+            mean.map(|v| std::f32::consts::PI * 0.5 * v / options.albedo),
+        );
+        main.confidence = 0.1;
+        // Sources seen in the photo stay (with their detected intensities): the fallback only
+        // stands in for what could not be inferred.
+        let mut lights = in_view.to_vec();
+        lights.push(main);
+        LightFit {
+            main,
+            ambient,
+            lights,
+            fallback_used: true,
+            residual: 1.0,
+            shadow_disagreement: 0.0,
+            samples: samples_used,
+        }
+    };
+    if samples.len() < 50 || n_regions == 0 || luma.iter().all(|v| *v <= 1e-6) {
+        return Ok(fallback(samples.len()));
+    }
+
+    // Baseline: ambient plus the in-view lights.
+    let baseline = alternate(&build(None), &luma, &regions, n_regions, options.albedo);
+    let has_mask = inputs.shadow_mask.is_some();
+    let score_direction = |cone: &[Vec3]| -> (f64, f64, Vec<f32>) {
+        let column: Vec<f32> = samples
+            .par_iter()
+            .map(|s| {
+                let mut acc = 0.0;
+                for d in cone {
+                    acc += term(
+                        &Light::directional((-*d).to_array(), 0.0, [1.0; 3]),
+                        s,
+                        depth,
+                        camera,
+                        reach,
+                    );
+                }
+                acc / cone.len() as f32
+            })
+            .collect();
+        let fit = alternate(
+            &build(Some(&column)),
+            &luma,
+            &regions,
+            n_regions,
+            options.albedo,
+        );
+        // Predicted cast shadow against the mask on the samples facing the light, as a fraction
+        // of all samples (ambient alone, facing nothing, disagrees nowhere).
+        let disagreement = if has_mask {
+            let sum: f64 = samples
+                .iter()
+                .zip(&column)
+                .map(|(s, c)| {
+                    let cos = s.n.dot(cone[0]);
+                    if cos > 0.15 {
+                        let predicted = 1.0 - (c / cos).clamp(0.0, 1.0);
+                        (predicted - s.mask).abs() as f64
+                    } else {
+                        0.0
+                    }
+                })
+                .sum();
+            sum / samples.len().max(1) as f64
+        } else {
+            0.0
+        };
+        (
+            fit.residual + options.shadow_weight as f64 * disagreement,
+            disagreement,
+            column,
+        )
+    };
+    let mut best: Option<(f64, Vec3)> = None;
+    for d in fibonacci(options.directions, up, -0.05) {
+        let (score, _, _) = score_direction(&[d]);
+        if best.is_none_or(|(b, _)| score < b) {
+            best = Some((score, d));
+        }
+    }
+    let Some((_, coarse)) = best else {
+        return Ok(fallback(samples.len()));
+    };
+    // Finer search within about two coarse spacings of the best.
+    let spacing = (4.0 / options.directions as f32).sqrt();
+    for d in fibonacci(options.directions * 4, up, -0.05) {
+        if d.dot(coarse) > (2.0 * spacing).cos() {
+            let (score, _, _) = score_direction(&[d]);
+            if best.is_none_or(|(b, _)| score < b) {
+                best = Some((score, d));
+            }
+        }
+    }
+    let Some((_, direction)) = best else {
+        return Ok(fallback(samples.len()));
+    };
+    // Angular size: a cone of directions for a few widths; the softest that does not explain
+    // the photo worse wins.
+    let (tx, ty) = {
+        let t = if direction.x.abs() < 0.9 {
+            Vec3::X
+        } else {
+            Vec3::Z
+        };
+        let x = t.cross(direction).normalize();
+        (x, direction.cross(x))
+    };
+    let mut best_size = (f64::MAX, 0.0f32, 0.0f64, Vec::new());
+    for size_deg in [0.5f32, 4.0, 12.0, 25.0] {
+        let r = (size_deg / 2.0).to_radians();
+        let mut cone = vec![direction];
+        for k in 0..8 {
+            let a = k as f32 * std::f32::consts::TAU / 8.0;
+            let rr = r * if k % 2 == 0 { 1.0 } else { 0.6 };
+            cone.push((direction + (tx * a.cos() + ty * a.sin()) * rr.tan()).normalize());
+        }
+        let (score, disagreement, column) =
+            score_direction(if size_deg < 1.0 { &cone[..1] } else { &cone });
+        if score < best_size.0 - 1e-4 {
+            best_size = (score, size_deg, disagreement, column);
+        }
+    }
+    let (score, size_deg, disagreement, column) = best_size;
+    let baseline_score = baseline.residual;
+    // A light that leaves half of the shading unexplained is not an inference.
+    let keep_directional = score < baseline_score * (1.0 - options.min_improvement as f64)
+        && score < MAX_EXPLAINED_RESIDUAL;
+    if !keep_directional && in_view.is_empty() {
+        return Ok(fallback(samples.len()));
+    }
+
+    // Magnitudes come from the luminance fit. Colour: with the luminance fit's region albedos
+    // held, each channel's intensities are a linear least-squares solve (grey-world: the albedos'
+    // colour is taken as neutral), kept within a factor of two of grey, since the colour of a
+    // poorly explained photo can wander off and a light's colour rarely lies outside that range.
+    let g = build(keep_directional.then_some(&column));
+    let lum_fit = trimmed(&g, &luma, &regions, n_regions, options.albedo);
+    let (_, rho) = projected(&g, &luma, &regions, n_regions, &lum_fit.x);
+    let channel: Vec<Vec<f64>> = (0..3)
+        .map(|k| {
+            let m = g[0].len();
+            let mut a = vec![vec![0.0f64; m + 1]; m];
+            for ((row, s), r) in g.iter().zip(&samples).zip(&regions) {
+                for i in 0..m {
+                    let gi = row[i] as f64 * rho[*r];
+                    for j in 0..m {
+                        a[i][j] += gi * row[j] as f64 * rho[*r];
+                    }
+                    a[i][m] += gi * s.rgb[k] as f64;
+                }
+            }
+            solve(a)
+        })
+        .collect();
+    let value = |j: usize| -> [f32; 3] {
+        let rgb = [0, 1, 2].map(|k| channel[k][j].max(0.0) as f32);
+        let l = lum_fit.x[j].max(0.0) as f32;
+        let y = luminance(rgb);
+        if y <= 1e-12 {
+            return [l; 3];
+        }
+        let c = rgb.map(|v| (v / y).clamp(0.5, 2.0));
+        let cy = luminance(c).max(1e-6);
+        c.map(|v| v / cy * l)
+    };
+    let pi = std::f32::consts::PI;
+    let mut lights = Vec::new();
+    for (j, l) in in_view.iter().enumerate() {
+        // E_j = I / π for a light at a position (diffuse radiance = ρ/π · I cosθ / r²).
+        lights.push(Light {
+            intensity: value(j).map(|v| v * pi),
+            ..*l
+        });
+    }
+    if keep_directional {
+        let mut l = Light::directional(
+            (-direction).to_array(),
+            size_deg,
+            value(in_view.len()).map(|v| v * pi),
+        );
+        l.confidence = (1.0 - score / baseline_score.max(1e-9)).clamp(0.05, 1.0) as f32;
+        lights.push(l);
+    }
+    let ambient = value(g[0].len() - 1);
+    // Main light: the most irradiance at the insertion point (unoccluded, facing it).
+    let main = lights
+        .iter()
+        .copied()
+        .max_by(|a, b| {
+            let e = |l: &Light| {
+                let (_, d) = l.towards(centre);
+                let fall = if d.is_finite() {
+                    1.0 / (d * d).max(1e-4)
+                } else {
+                    1.0
+                };
+                luminance(l.intensity) * fall
+            };
+            e(a).total_cmp(&e(b))
+        })
+        .unwrap_or_else(|| fallback(0).main);
+    let residual = if keep_directional {
+        alternate(&g, &luma, &regions, n_regions, options.albedo).residual
+    } else {
+        baseline.residual
+    };
+    Ok(LightFit {
+        main,
+        ambient,
+        lights,
+        fallback_used: false,
+        residual: residual as f32,
+        shadow_disagreement: if keep_directional {
+            disagreement as f32
+        } else {
+            0.0
+        },
+        samples: samples.len(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::light::shadow_mask::continuity_regions;
+
+    /// Ray-traced truth of a small room: floor y = −1, back wall z = −6, left wall x = −3 and a
+    /// box on the floor, lit by a directional light towards `to_light` plus ambient `ambient`.
+    /// The planes are infinite: a light behind a wall (x < 0 or z < 0) would be blocked by it.
+    struct Room {
+        photo: Raster<[f32; 3]>,
+        depth: Raster<f32>,
+        normals: Raster<[f32; 3]>,
+        shadow: Raster<f32>,
+        camera: Camera,
+    }
+
+    fn hit_box(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<(f32, Vec3)> {
+        let inv = d.recip();
+        let (t1, t2) = ((lo - o) * inv, (hi - o) * inv);
+        let (tmin, tmax) = (t1.min(t2), t1.max(t2));
+        let t0 = tmin.max_element();
+        if t0 > 1e-4 && t0 <= tmax.min_element() {
+            let n = if t0 == tmin.x {
+                Vec3::X * -d.x.signum()
+            } else if t0 == tmin.y {
+                Vec3::Y * -d.y.signum()
+            } else {
+                Vec3::Z * -d.z.signum()
+            };
+            Some((t0, n))
+        } else {
+            None
+        }
+    }
+
+    fn room(to_light: Vec3, ambient: f32, irradiance: f32) -> Room {
+        let (w, h) = (160, 120);
+        let camera = Camera::from_focal(120.0, w, h).unwrap();
+        let (lo, hi) = (Vec3::new(-0.5, -1.0, -4.3), Vec3::new(0.3, -0.2, -3.5));
+        let (lo2, hi2) = (Vec3::new(0.8, -1.0, -3.2), Vec3::new(1.2, -0.6, -2.8));
+        let trace = |o: Vec3, d: Vec3| -> Option<(f32, Vec3, f32)> {
+            let mut best: Option<(f32, Vec3, f32)> = None;
+            let mut consider = |t: f32, n: Vec3, albedo: f32| {
+                if t > 1e-4 && best.is_none_or(|b| t < b.0) {
+                    best = Some((t, n, albedo));
+                }
+            };
+            if d.y < 0.0 {
+                consider((-1.0 - o.y) / d.y, Vec3::Y, 0.6);
+            }
+            if d.z < 0.0 {
+                consider((-6.0 - o.z) / d.z, Vec3::Z, 0.45);
+            }
+            if d.x < 0.0 {
+                consider((-3.0 - o.x) / d.x, Vec3::X, 0.5);
+            }
+            if let Some((t, n)) = hit_box(o, d, lo, hi) {
+                consider(t, n, 0.3);
+            }
+            if let Some((t, n)) = hit_box(o, d, lo2, hi2) {
+                consider(t, n, 0.7);
+            }
+            best
+        };
+        let l = to_light.normalize();
+        let mut photo = Raster::filled(w as usize, h as usize, [0.0f32; 3]);
+        let mut depth = Raster::filled(w as usize, h as usize, f32::NAN);
+        let mut normals = Raster::filled(w as usize, h as usize, [0.0f32; 3]);
+        let mut shadow = Raster::filled(w as usize, h as usize, 0.0f32);
+        for y in 0..h as usize {
+            for x in 0..w as usize {
+                let d = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+                let Some((t, n, albedo)) = trace(Vec3::ZERO, d) else {
+                    continue;
+                };
+                let p = d * t;
+                let texture = 0.85 + 0.15 * ((p.x * 7.0).sin() * (p.z * 5.0).cos()).abs();
+                let lit = trace(p + n * 1e-3, l).is_none();
+                let e = if lit {
+                    irradiance * n.dot(l).max(0.0)
+                } else {
+                    0.0
+                };
+                let v =
+                    albedo * texture / std::f32::consts::PI * (e + std::f32::consts::PI * ambient);
+                *photo.get_mut(x, y) = [v, v * 0.95, v * 0.9];
+                *depth.get_mut(x, y) = -p.z;
+                *normals.get_mut(x, y) = n.to_array();
+                *shadow.get_mut(x, y) = if !lit && n.dot(l) > 0.0 { 1.0 } else { 0.0 };
+            }
+        }
+        Room {
+            photo,
+            depth,
+            normals,
+            shadow,
+            camera,
+        }
+    }
+
+    fn inputs<'a>(
+        r: &'a Room,
+        regions: &'a Raster<u32>,
+        mask: Option<&'a Raster<f32>>,
+    ) -> FitInputs<'a> {
+        FitInputs {
+            photo: &r.photo,
+            depth: &r.depth,
+            normals: &r.normals,
+            regions,
+            shadow_mask: mask,
+            camera: &r.camera,
+            up: [0.0, 1.0, 0.0],
+        }
+    }
+
+    #[test]
+    fn finds_the_direction_of_an_out_of_view_sun() {
+        for to_light in [Vec3::new(0.6, 1.0, 0.4), Vec3::new(0.25, 1.0, 0.8)] {
+            let r = room(to_light, 0.15, 2.0);
+            let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
+            let fit = fit_lights(
+                &inputs(&r, &regions, Some(&r.shadow)),
+                &[],
+                &Default::default(),
+            )
+            .unwrap();
+            assert!(!fit.fallback_used);
+            let found = -Vec3::from(fit.main.direction);
+            let error = found.angle_between(to_light.normalize()).to_degrees();
+            // The issue's target for a light out of view is 20°; behind the camera, shadows fall
+            // behind their casters and are partly hidden, so allow 15° here.
+            assert!(error < 15.0, "{to_light}: found {found}, {error}°");
+            // Both a sun and an ambient term are found (their ratio is not yet accurate: see the
+            // report in docs/lights-eval.md).
+            assert!(luminance(fit.main.intensity) > 0.0 && luminance(fit.ambient) > 0.0);
+            assert!(fit.residual < 0.1, "{}", fit.residual);
+        }
+    }
+
+    #[test]
+    fn a_flat_ambient_photo_falls_back_to_a_light_above() {
+        // Ambient only: no direction explains anything better.
+        let r = room(Vec3::Y, 0.3, 0.0);
+        let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
+        let fit = fit_lights(&inputs(&r, &regions, None), &[], &Default::default()).unwrap();
+        assert!(fit.fallback_used);
+        assert!(Vec3::from(fit.main.direction).abs_diff_eq(-Vec3::Y, 1e-5));
+        fit.main.validate().unwrap();
+    }
+
+    #[test]
+    fn extreme_input_gives_a_finite_fallback() {
+        let camera = Camera::from_focal(10.0, 8, 6).unwrap();
+        let black = Raster::filled(8, 6, [0.0f32; 3]);
+        let depth = Raster::filled(8, 6, f32::NAN);
+        let normals = Raster::filled(8, 6, [0.0f32; 3]);
+        let regions = Raster::filled(8, 6, NO_REGION);
+        let i = FitInputs {
+            photo: &black,
+            depth: &depth,
+            normals: &normals,
+            regions: &regions,
+            shadow_mask: None,
+            camera: &camera,
+            up: [0.0, 1.0, 0.0],
+        };
+        let fit = fit_lights(&i, &[], &Default::default()).unwrap();
+        assert!(fit.fallback_used);
+        fit.main.validate().unwrap();
+        assert!(fit.ambient.iter().all(|v| v.is_finite()));
+        let bad = FitInputs { up: [0.0; 3], ..i };
+        assert!(fit_lights(&bad, &[], &Default::default())
+            .unwrap_err()
+            .to_string()
+            .contains("up"));
+        let short = Raster::filled(7, 6, f32::NAN);
+        let bad = FitInputs { depth: &short, ..i };
+        assert!(fit_lights(&bad, &[], &Default::default())
+            .unwrap_err()
+            .to_string()
+            .contains("depth"));
+    }
+}
