@@ -24,16 +24,18 @@ fn brdf_pbr(n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, base: vec3<f32>, metallic:
     let n_dot_h = clamp(dot(n, h), 0.0, 1.0);
     let v_dot_h = clamp(dot(v, h), 0.0, 1.0);
     // α = roughness², kept ≥ 1e-3 so a mirror's highlight stays finite.
-    let a = max(roughness * roughness, 1e-3);
-    let a2 = a * a;
-    let f0 = mix(vec3<f32>(0.04), base, metallic);
-    let c_diff = mix(base, vec3<f32>(0.0), metallic);
-    let f = f0 + (vec3<f32>(1.0) - f0) * pow(1.0 - v_dot_h, 5.0);
-    let k = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
-    let d = a2 / (PI * k * k);
-    let vis = 1.0 / ((n_dot_l + sqrt(a2 + (1.0 - a2) * n_dot_l * n_dot_l))
-        * (n_dot_v + sqrt(a2 + (1.0 - a2) * n_dot_v * n_dot_v)));
-    return (vec3<f32>(1.0) - f) * c_diff / PI + f * d * vis;
+    let alpha = max(roughness * roughness, 1e-3);
+    let alpha2 = alpha * alpha;
+    let f0 = vec3<f32>(0.04) * (1.0 - metallic) + base * metallic;
+    let c_diff = base * (1.0 - metallic);
+    let fresnel = f0 + (vec3<f32>(1.0) - f0) * pow(1.0 - v_dot_h, 5.0);
+    let k = n_dot_h * n_dot_h * (alpha2 - 1.0) + 1.0;
+    let ggx = alpha2 / (PI * k * k);
+    let smith = 1.0 / ((n_dot_l + sqrt(alpha2 + (1.0 - alpha2) * n_dot_l * n_dot_l))
+        * (n_dot_v + sqrt(alpha2 + (1.0 - alpha2) * n_dot_v * n_dot_v)));
+    let diffuse = (vec3<f32>(1.0) - fresnel) * c_diff * (1.0 / PI);
+    let specular = fresnel * (ggx * smith);
+    return diffuse + specular;
 }
 
 // Thesis eq. 3.27–3.30 for one light, per unit irradiance: k_d (L·N + c_s k_s (R·V)^α c_f) / π
@@ -48,7 +50,7 @@ fn brdf_thesis(n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, base: vec3<f32>, metall
     let c_s = (power + 8.0) / (8.0 * PI);
     let c_base = 1.0 - pow(r_dot_v, 5.0);
     let c_f = (c_base + 0.018) * (1.0 - c_base);
-    let k_s = mix(vec3<f32>(0.04), base, metallic);
+    let k_s = vec3<f32>(0.04) * (1.0 - metallic) + base * metallic;
     return base * (vec3<f32>(n_dot_l) + c_s * k_s * pow(r_dot_v, power) * c_f) / PI;
 }
 
@@ -136,8 +138,8 @@ fn fs_artefact(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0
     if (thesis) {
         color += albedo * sh_diffuse(n) * ao;
     } else {
-        let c_diff = mix(albedo, vec3<f32>(0.0), metallic);
-        let f0 = mix(vec3<f32>(0.04), albedo, metallic);
+        let c_diff = albedo * (1.0 - metallic);
+        let f0 = vec3<f32>(0.04) * (1.0 - metallic) + albedo * metallic;
         color += c_diff * sh_diffuse(n) * ao;
         // Split-sum specular only where the material can show a reflection.
         if (roughness < 0.95 || metallic > 0.0) {

@@ -12,7 +12,7 @@ use glam::{Mat3, Vec3, Vec4};
 use crate::artefact::{Aabb, AlphaMode, Artefact, ArtefactSet};
 use crate::mesh::SceneMesh;
 
-/// One vertex as the shaders read it (80 bytes).
+/// One vertex as the shaders read it (76 bytes, attributes packed in this order).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub(crate) struct Vertex {
@@ -20,7 +20,6 @@ pub(crate) struct Vertex {
     /// 1 when the surface receives shadows, 0 when not.
     pub receives_shadow: f32,
     pub normal: [f32; 3],
-    pub _pad: f32,
     /// xyz tangent, w bitangent sign; all zero when the primitive has none.
     pub tangent: [f32; 4],
     pub uv0: [f32; 2],
@@ -124,7 +123,6 @@ impl SceneGeometry {
                         position: finite_or_zero(world).to_array(),
                         receives_shadow: if instance.receives_shadow { 1.0 } else { 0.0 },
                         normal: (normal_matrix * n).normalize_or(Vec3::Y).to_array(),
-                        _pad: 0.0,
                         tangent,
                         uv0: uv(&p.uv0),
                         uv1: uv(&p.uv1),
@@ -181,7 +179,6 @@ impl SceneGeometry {
                     position: *p,
                     receives_shadow: 1.0,
                     normal: mesh.normals.get(k).copied().unwrap_or([0.0, 0.0, 1.0]),
-                    _pad: 0.0,
                     tangent: mesh.tangents.get(k).copied().unwrap_or([0.0; 4]),
                     uv0: mesh.uvs.get(k).copied().unwrap_or([0.0; 2]),
                     uv1: [0.0; 2],

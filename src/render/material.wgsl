@@ -29,8 +29,8 @@ struct MaterialU {
 @group(1) @binding(9) var s_occlusion: sampler;
 @group(1) @binding(10) var s_emissive: sampler;
 
-fn material_uv(slot: u32, set: u32, uv0: vec2<f32>, uv1: vec2<f32>) -> vec2<f32> {
-    let uv = select(uv0, uv1, set == 1u);
+fn material_uv(slot: u32, uv_set: u32, uv0: vec2<f32>, uv1: vec2<f32>) -> vec2<f32> {
+    let uv = select(uv0, uv1, uv_set == 1u);
     let r0 = material.xf[2u * slot];
     let r1 = material.xf[2u * slot + 1u];
     return vec2<f32>(dot(r0.xyz, vec3<f32>(uv, 1.0)), dot(r1.xyz, vec3<f32>(uv, 1.0)));
