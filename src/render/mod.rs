@@ -8,6 +8,7 @@
 //! | `renderer` | [`Renderer`]: the passes below |
 //! | `geometry` | artefacts and the scene mesh flattened into world-space draws |
 //! | `shadow_views` | per light: orthographic box, perspective frustum or cube, or no map |
+//! | [`compare`] | the renderer against the reference path tracer (TRUE depth and lights) |
 //! | `pipelines`, `resources` | pipelines, bind groups, material textures, environment |
 //! | `*.wgsl` | shaders: `shadow`, `common` (lights, shadow filters), `material`, `forward`, `receiver` |
 //!
@@ -27,20 +28,34 @@
 //!    shadow the direct term is weighted by `1 − mask` in both, so it is not darkened twice.
 //! 4. **Composite** (CPU): `photo × ratio × (1 − α) + artefact` (premultiplied).
 
+// The renderer draws artefacts, so it needs the glTF types (feature `gltf`); the context does not.
+#[cfg(feature = "gltf")]
+pub mod compare;
 pub mod context;
+#[cfg(feature = "gltf")]
 mod geometry;
+#[cfg(feature = "gltf")]
 mod gpu_types;
+#[cfg(feature = "gltf")]
 mod options;
+#[cfg(feature = "gltf")]
 mod pipelines;
+#[cfg(feature = "gltf")]
 mod renderer;
+#[cfg(feature = "gltf")]
 mod resources;
+#[cfg(feature = "gltf")]
 mod shadow_views;
-#[cfg(test)]
+#[cfg(feature = "gltf")]
+mod shapes;
+#[cfg(all(test, feature = "gltf"))]
 mod tests;
 
 pub use context::{read_texture, GpuContext, GpuOptions};
+#[cfg(feature = "gltf")]
 pub use options::{
     Composite, RenderInputs, RenderOptions, RenderRecord, ShadingMode, ShadowMode,
     SpecularEnvironment, EVSM_EXPONENT_LIMIT,
 };
+#[cfg(feature = "gltf")]
 pub use renderer::{Renderer, SHADOW_MEMORY_BUDGET};

@@ -100,18 +100,32 @@ fn target(
 
 impl Renderer {
     /// A renderer on the library's own GPU context.
-    pub fn new(gpu: &GpuContext) -> Renderer {
+    ///
+    /// # Errors
+    /// As [`Renderer::from_device`].
+    pub fn new(gpu: &GpuContext) -> Result<Renderer> {
         Renderer::from_device(&gpu.device, &gpu.queue)
     }
 
     /// A renderer on a host's device and queue (Rust callers that already run wgpu). The device
-    /// needs no optional feature: every 32-bit float texture is read without filtering.
-    pub fn from_device(device: &wgpu::Device, queue: &wgpu::Queue) -> Renderer {
-        Renderer {
+    /// needs no optional feature: every 32-bit float texture is read without filtering, and 4×
+    /// MSAA of `Rgba16Float` and `Depth32Float` is guaranteed by WebGPU.
+    ///
+    /// # Errors
+    /// `Gpu` when the device rejects a shader or pipeline (the message has wgpu's reason).
+    pub fn from_device(device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Renderer> {
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let pipelines = Pipelines::new(device);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(Error::Gpu(format!(
+                "creating the render pipelines failed: {e}"
+            )));
+        }
+        Ok(Renderer {
             device: device.clone(),
             queue: queue.clone(),
-            pipelines: Pipelines::new(device),
-        }
+            pipelines,
+        })
     }
 
     /// Renders the artefacts into the photo. See the module documentation for the passes.
@@ -392,6 +406,10 @@ impl Renderer {
             ],
         };
         let device = &self.device;
+        // Device errors (out of memory for large shadow maps, validation) become `Error::Gpu`
+        // instead of wgpu's default panic; scopes pop in reverse order.
+        let oom_scope = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation_scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let storage = |label: &str, bytes: &[u8]| {
             // Storage bindings may not be empty.
             let padded: Vec<u8> = if bytes.is_empty() {
@@ -797,6 +815,11 @@ impl Renderer {
         }
         let t = Instant::now();
         self.queue.submit([encoder.finish()]);
+        for scope in [validation_scope, oom_scope] {
+            if let Some(e) = pollster::block_on(scope.pop()) {
+                return Err(Error::Gpu(format!("render: the device failed: {e}")));
+            }
+        }
         let layer_bytes = read_texture(device, &self.queue, &layer)?;
         let ratio_bytes = read_texture(device, &self.queue, &ratio)?;
         let depth_bytes = read_texture(device, &self.queue, &art_depth)?;

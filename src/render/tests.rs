@@ -1,12 +1,13 @@
 //! Renderer tests on synthetic scenes built in code: a floor (and a wall) as the scene mesh,
 //! boxes and spheres as artefacts, lights from [`Light`]. Expected values are analytic.
 
-use std::sync::{Arc, OnceLock};
+use std::sync::OnceLock;
 
-use glam::{Mat4, Vec2, Vec3, Vec4};
+use glam::{Mat4, Vec3, Vec4};
 
+use super::shapes::{cube, sphere};
 use super::*;
-use crate::artefact::{Aabb, AlphaMode, Artefact, ArtefactSet, Material, Primitive};
+use crate::artefact::{AlphaMode, ArtefactSet, Material};
 use crate::camera::Camera;
 use crate::image::Raster;
 use crate::light::{CubeLevel, CubeMap, Light, LightKind, Sh9};
@@ -21,7 +22,7 @@ fn renderer() -> &'static Renderer {
         let gpu = GpuContext::new(&GpuOptions::default()).expect(
             "a GPU adapter is required for this test (CI installs mesa-vulkan-drivers for llvmpipe)",
         );
-        Renderer::new(&gpu)
+        Renderer::new(&gpu).unwrap()
     })
 }
 
@@ -72,97 +73,6 @@ fn merge(mut a: SceneMesh, b: SceneMesh) -> SceneMesh {
     a.uvs.extend(b.uvs);
     a.indices.extend(b.indices.iter().map(|i| i + base));
     a
-}
-
-fn artefact(
-    positions: Vec<Vec3>,
-    normals: Vec<Vec3>,
-    indices: Vec<u32>,
-    material: Material,
-) -> Arc<Artefact> {
-    let bounds = Aabb::from_points(&positions).unwrap();
-    let uv0 = Some(positions.iter().map(|p| Vec2::new(p.x, p.z)).collect());
-    Arc::new(Artefact {
-        source: "test".into(),
-        primitives: vec![Primitive {
-            mesh: 0,
-            mesh_name: None,
-            node: 0,
-            primitive: 0,
-            positions,
-            normals,
-            tangents: None,
-            uv0,
-            uv1: None,
-            colors: None,
-            indices,
-            material: 0,
-            bounds,
-        }],
-        materials: vec![material],
-        textures: Vec::new(),
-        extensions_used: Vec::new(),
-        extensions_required: Vec::new(),
-        warnings: Vec::new(),
-        bounds,
-    })
-}
-
-/// A unit cube centred at the origin (faces with their own normals, CCW outside).
-fn cube(material: Material) -> Arc<Artefact> {
-    let mut p = Vec::new();
-    let mut n = Vec::new();
-    let mut idx = Vec::new();
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let mut normal = Vec3::ZERO;
-            normal[axis] = sign;
-            let u = Vec3::from_array(std::array::from_fn(|k| {
-                if k == (axis + 1) % 3 {
-                    1.0
-                } else {
-                    0.0
-                }
-            }));
-            let v = normal.cross(u);
-            let base = p.len() as u32;
-            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                p.push(0.5 * (normal + u * a + v * b));
-                n.push(normal);
-            }
-            idx.extend_from_slice(&[base, base + 1, base + 2, base, base + 2, base + 3]);
-        }
-    }
-    artefact(p, n, idx, material)
-}
-
-/// A UV sphere of radius 1 at the origin.
-fn sphere(material: Material) -> Arc<Artefact> {
-    let (rings, segs) = (48, 96);
-    let mut p = Vec::new();
-    for j in 0..=rings {
-        let theta = std::f32::consts::PI * j as f32 / rings as f32;
-        for i in 0..=segs {
-            let phi = 2.0 * std::f32::consts::PI * i as f32 / segs as f32;
-            p.push(Vec3::new(
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                -theta.sin() * phi.sin(),
-            ));
-        }
-    }
-    let mut idx = Vec::new();
-    for j in 0..rings {
-        for i in 0..segs {
-            let a = (j * (segs + 1) + i) as u32;
-            let b = a + 1;
-            let c = a + (segs + 1) as u32;
-            let d = c + 1;
-            idx.extend_from_slice(&[a, c, b, b, c, d]);
-        }
-    }
-    let n = p.clone();
-    artefact(p, n, idx, material)
 }
 
 fn diffuse(rgb: [f32; 3]) -> Material {
@@ -765,7 +675,7 @@ fn extreme_materials_scales_and_placements_stay_finite() {
 #[test]
 fn renderer_works_on_a_hosts_device() {
     let gpu = GpuContext::new(&GpuOptions::default()).unwrap();
-    let r = Renderer::from_device(&gpu.device, &gpu.queue);
+    let r = Renderer::from_device(&gpu.device, &gpu.queue).unwrap();
     let s = box_on_floor();
     let out = r
         .render(
