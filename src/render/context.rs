@@ -182,62 +182,75 @@ impl GpuContext {
     /// # Errors
     /// `Gpu` when the format has no fixed texel size, or mapping the buffer fails.
     pub fn read_texture(&self, texture: &wgpu::Texture) -> Result<Vec<u8>> {
-        let format = texture.format();
-        let texel = format
-            .block_copy_size(None)
-            .ok_or_else(|| Error::Gpu(format!("cannot read back texture format {format:?}")))?
-            as usize;
-        let (width, height) = (texture.width() as usize, texture.height() as usize);
-        let row = width * texel;
-        let padded_row = padded_bytes_per_row(row);
-        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("parallax readback"),
-            size: (padded_row * height) as u64,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("parallax readback"),
-            });
-        encoder.copy_texture_to_buffer(
-            texture.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded_row as u32),
-                    rows_per_image: Some(height as u32),
-                },
-            },
-            texture.size(),
-        );
-        self.queue.submit([encoder.finish()]);
-        let slice = buffer.slice(..);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            // The receiver lives until after the poll below; a failed send only means it is gone.
-            let _ = sender.send(r);
-        });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("waiting for the GPU failed: {e}")))?;
-        receiver
-            .recv()
-            .map_err(|_| Error::Gpu("readback callback never ran".into()))?
-            .map_err(|e| Error::Gpu(format!("mapping the readback buffer failed: {e}")))?;
-        let mapped = slice
-            .get_mapped_range()
-            .map_err(|e| Error::Gpu(format!("reading the readback buffer failed: {e}")))?;
-        let mut out = Vec::with_capacity(row * height);
-        for y in 0..height {
-            out.extend_from_slice(&mapped[y * padded_row..y * padded_row + row]);
-        }
-        drop(mapped);
-        buffer.unmap();
-        Ok(out)
+        read_texture(&self.device, &self.queue, texture)
     }
+}
+
+/// Copies a 2D texture (mip 0, layer 0) into tightly packed rows of bytes, on any device (a
+/// host's own included).
+///
+/// The texture must have `COPY_SRC` usage and an uncompressed colour format.
+///
+/// # Errors
+/// `Gpu` when the format has no fixed texel size, or mapping the buffer fails.
+pub fn read_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    texture: &wgpu::Texture,
+) -> Result<Vec<u8>> {
+    let format = texture.format();
+    let texel = format
+        .block_copy_size(None)
+        .ok_or_else(|| Error::Gpu(format!("cannot read back texture format {format:?}")))?
+        as usize;
+    let (width, height) = (texture.width() as usize, texture.height() as usize);
+    let row = width * texel;
+    let padded_row = padded_bytes_per_row(row);
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("parallax readback"),
+        size: (padded_row * height) as u64,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+        label: Some("parallax readback"),
+    });
+    encoder.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded_row as u32),
+                rows_per_image: Some(height as u32),
+            },
+        },
+        texture.size(),
+    );
+    queue.submit([encoder.finish()]);
+    let slice = buffer.slice(..);
+    let (sender, receiver) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        // The receiver lives until after the poll below; a failed send only means it is gone.
+        let _ = sender.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::Gpu(format!("waiting for the GPU failed: {e}")))?;
+    receiver
+        .recv()
+        .map_err(|_| Error::Gpu("readback callback never ran".into()))?
+        .map_err(|e| Error::Gpu(format!("mapping the readback buffer failed: {e}")))?;
+    let mapped = slice
+        .get_mapped_range()
+        .map_err(|e| Error::Gpu(format!("reading the readback buffer failed: {e}")))?;
+    let mut out = Vec::with_capacity(row * height);
+    for y in 0..height {
+        out.extend_from_slice(&mapped[y * padded_row..y * padded_row + row]);
+    }
+    drop(mapped);
+    buffer.unmap();
+    Ok(out)
 }
 
 /// `row` rounded up to wgpu's 256-byte row alignment for buffer copies.

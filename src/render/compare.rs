@@ -1,0 +1,431 @@
+//! The renderer against the reference path tracer on a built-in scene, with TRUE depth and TRUE
+//! lights: separates the renderer's own error from the estimation stages'. `parallax eval
+//! composite` calls [`compare_with_reference`].
+
+use std::time::Instant;
+
+use glam::{Mat4, Vec3, Vec4};
+
+use super::options::{Composite, RenderInputs, RenderOptions};
+use super::renderer::Renderer;
+use super::shapes::{cube, sphere};
+use crate::artefact::{ArtefactSet, Material};
+use crate::camera::Camera;
+use crate::error::{Error, Result};
+use crate::image::Raster;
+use crate::light::{Light, LightKind, Sh9};
+use crate::mesh::{MeshOptions, SceneMesh};
+use crate::reference::{self, LightRecord, Object, SampleBudget, Shape};
+
+/// What to compare.
+#[derive(Debug, Clone)]
+pub struct ComparisonSetup {
+    /// A built-in reference scene (`room`, `two-lights`, `clutter`, `window`).
+    pub scene: String,
+    /// Inserted shapes: (`sphere` | `box` | …, world position of the lowest point, scale).
+    pub inserts: Vec<(String, [f32; 3], f32)>,
+    /// Image width (height keeps the rig's aspect).
+    pub width: u32,
+    /// Path-tracer samples per pixel.
+    pub samples_per_pixel: u32,
+    /// Renderer configurations to measure.
+    pub configs: Vec<RenderOptions>,
+}
+
+impl ComparisonSetup {
+    /// The room with a glossy sphere on the table and a box on the floor half behind the table.
+    pub fn room(width: u32, samples_per_pixel: u32, configs: Vec<RenderOptions>) -> Self {
+        ComparisonSetup {
+            scene: "room".into(),
+            inserts: vec![
+                ("sphere".into(), [0.0, 0.75, -1.6], 1.0),
+                ("box".into(), [0.7, 0.0, -2.3], 1.0),
+            ],
+            width,
+            samples_per_pixel,
+            configs,
+        }
+    }
+}
+
+/// Mean absolute error (linear light, over channels) and PSNR (peak 1) of one region.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegionError {
+    /// Pixels in the region.
+    pub pixels: usize,
+    /// Mean absolute error.
+    pub mae: f64,
+    /// PSNR in dB (infinite for an exact match; NaN for an empty region).
+    pub psnr: f64,
+}
+
+/// One measured configuration.
+#[derive(Debug, Clone)]
+pub struct ComparisonRow {
+    /// The options rendered with.
+    pub options: RenderOptions,
+    /// Whole image.
+    pub image: RegionError,
+    /// Where the reference shows the inserted objects (coverage > 0.5).
+    pub artefact: RegionError,
+    /// Outside the objects where the reference's ratio drops below 0.95 (their shadows).
+    pub shadow: RegionError,
+    /// Wall-clock time of the render call, milliseconds.
+    pub render_ms: f64,
+}
+
+/// The reference's side of a comparison.
+#[derive(Debug, Clone)]
+pub struct ComparisonResult {
+    /// Per configuration.
+    pub rows: Vec<ComparisonRow>,
+    /// Path tracer's time for the composite (with and without the objects), seconds.
+    pub reference_seconds: f64,
+    /// Samples per pixel of the reference.
+    pub samples_per_pixel: u32,
+    /// Image size.
+    pub size: (u32, u32),
+}
+
+/// A reference light record as a renderer [`Light`] (camera frame).
+///
+/// # Errors
+/// `Format` for a record missing a field its kind needs.
+pub fn light_from_record(r: &LightRecord) -> Result<Light> {
+    let missing = |what: &str| Error::format(format!("{} light record has no {what}", r.kind));
+    match r.kind.as_str() {
+        "directional" => Ok(Light::directional(
+            r.direction.ok_or_else(|| missing("direction"))?,
+            r.angular_diameter_deg.unwrap_or(0.0),
+            r.irradiance.ok_or_else(|| missing("irradiance"))?,
+        )),
+        "sphere" => Ok(Light {
+            kind: LightKind::Point,
+            position: r.position.ok_or_else(|| missing("position"))?,
+            direction: [0.0, -1.0, 0.0],
+            size: 2.0 * r.radius.unwrap_or(0.0),
+            intensity: r.intensity.ok_or_else(|| missing("intensity"))?,
+            confidence: 1.0,
+        }),
+        "rect" => {
+            let [a, b] = r.size.ok_or_else(|| missing("size"))?;
+            Ok(Light {
+                kind: LightKind::Area,
+                position: r.position.ok_or_else(|| missing("position"))?,
+                direction: r.normal.ok_or_else(|| missing("normal"))?,
+                // The disc of the same area.
+                size: 2.0 * (a * b / std::f32::consts::PI).sqrt(),
+                intensity: r.intensity.ok_or_else(|| missing("intensity"))?,
+                confidence: 1.0,
+            })
+        }
+        other => Err(Error::format(format!(
+            "unknown light record kind {other:?}"
+        ))),
+    }
+}
+
+/// SH9 of an equirectangular radiance map in the camera frame (centre column = −z, top row =
+/// +y), by direct projection.
+pub fn sh9_from_equirect(env: &Raster<[f32; 3]>) -> Sh9 {
+    let (w, h) = (env.width(), env.height());
+    let mut proj = [[0.0f32; 3]; 9];
+    if w == 0 || h == 0 {
+        return Sh9::default();
+    }
+    let d_area = (2.0 * std::f32::consts::PI / w as f32) * (std::f32::consts::PI / h as f32);
+    for j in 0..h {
+        let theta = std::f32::consts::PI * (j as f32 + 0.5) / h as f32;
+        for i in 0..w {
+            let lambda = 2.0 * std::f32::consts::PI * ((i as f32 + 0.5) / w as f32 - 0.5);
+            let (x, y, z) = (
+                theta.sin() * lambda.sin(),
+                theta.cos(),
+                -theta.sin() * lambda.cos(),
+            );
+            let y_lm = [
+                0.282_095,
+                0.488_603 * y,
+                0.488_603 * z,
+                0.488_603 * x,
+                1.092_548 * x * y,
+                1.092_548 * y * z,
+                0.315_392 * (3.0 * z * z - 1.0),
+                1.092_548 * x * z,
+                0.546_274 * (x * x - y * y),
+            ];
+            let l = env.get(i, j);
+            let weight = d_area * theta.sin();
+            for (p, yv) in proj.iter_mut().zip(y_lm) {
+                for k in 0..3 {
+                    p[k] += l[k] * yv * weight;
+                }
+            }
+        }
+    }
+    Sh9::from_radiance_projection(proj)
+}
+
+/// The renderer's artefact for a reference shape (sphere and box; a texture becomes its mean
+/// colour).
+fn artefact_for(
+    object: &Object,
+    world_to_camera: Mat4,
+) -> Result<(std::sync::Arc<crate::artefact::Artefact>, Mat4)> {
+    let m = &object.material;
+    let mut base = Vec3::from(m.base_color);
+    if let Some(t) = &m.texture {
+        base = (base + Vec3::from(t.color)) * 0.5;
+    }
+    let material = Material {
+        base_color_factor: Vec4::new(base.x, base.y, base.z, 1.0),
+        metallic_factor: m.metallic,
+        roughness_factor: m.roughness,
+        ..Material::default()
+    };
+    let transform = world_to_camera * object.transform.matrix();
+    match &object.shape {
+        Shape::Sphere { radius, .. } => Ok((
+            sphere(material),
+            transform * Mat4::from_scale(Vec3::splat(*radius)),
+        )),
+        Shape::Box { size } => Ok((
+            cube(material),
+            transform * Mat4::from_scale(Vec3::from(*size)),
+        )),
+        other => Err(Error::Unsupported(format!(
+            "comparison: inserted shape {other:?} has no renderer counterpart here (sphere, box)"
+        ))),
+    }
+}
+
+fn region_error(
+    ours: &Raster<[f32; 3]>,
+    truth: &Raster<[f32; 3]>,
+    inside: impl Fn(usize, usize) -> bool,
+) -> RegionError {
+    let (mut n, mut abs, mut sq) = (0usize, 0.0f64, 0.0f64);
+    for y in 0..truth.height() {
+        for x in 0..truth.width() {
+            if !inside(x, y) {
+                continue;
+            }
+            n += 1;
+            for k in 0..3 {
+                let d = (ours.get(x, y)[k] - truth.get(x, y)[k]) as f64;
+                abs += d.abs();
+                sq += d * d;
+            }
+        }
+    }
+    let count = (3 * n) as f64;
+    let mse = sq / count;
+    RegionError {
+        pixels: n,
+        mae: abs / count,
+        psnr: 10.0 * (1.0 / mse).log10(),
+    }
+}
+
+/// Renders the setup's scene with the path tracer (photo, TRUE depth and lights, ground-truth
+/// composite), then with the renderer in every configuration, and measures the error of each.
+///
+/// # Errors
+/// As [`reference::render`], [`reference::render_composite`], [`SceneMesh::from_depth`] and
+/// [`Renderer::render`].
+pub fn compare_with_reference(
+    renderer: &Renderer,
+    setup: &ComparisonSetup,
+) -> Result<ComparisonResult> {
+    let scene = reference::builtin(&setup.scene)?;
+    let options = reference::RenderOptions {
+        width: Some(setup.width),
+        samples: SampleBudget::PerPixel(setup.samples_per_pixel),
+        ..Default::default()
+    };
+    let inserted: Vec<Object> = setup
+        .inserts
+        .iter()
+        .map(|(name, p, s)| reference::insert_shape(name, *p, *s, 0.0))
+        .collect::<Result<_>>()?;
+    // Depth, lights and environment are exact per pixel centre: one sample is enough for them.
+    let truth_options = reference::RenderOptions {
+        samples: SampleBudget::PerPixel(1),
+        ..options
+    };
+    let images = reference::render(&scene, &truth_options)?;
+    let truth = reference::render_composite(&scene, &inserted, &options)?;
+    let (w, h) = (
+        truth.composite.width() as u32,
+        truth.composite.height() as u32,
+    );
+    let camera =
+        Camera::from_calibration(&images.calibration, w, h)?.with_clip_from_depth(&images.depth)?;
+    let mesh = SceneMesh::from_depth(&images.depth, &camera, &MeshOptions::default())?;
+    let lights = images
+        .lights
+        .iter()
+        .map(light_from_record)
+        .collect::<Result<Vec<_>>>()?;
+    let sh = sh9_from_equirect(&images.environment);
+    let world_to_camera = Mat4::from_cols_array(&images.camera_to_world).inverse();
+    let mut set = ArtefactSet::new();
+    for o in &inserted {
+        let (a, t) = artefact_for(o, world_to_camera)?;
+        set.add(a, t)?;
+    }
+    let inputs = RenderInputs {
+        photo: &truth.background,
+        camera: &camera,
+        scene_mesh: Some(&mesh),
+        artefacts: &set,
+        lights: &lights,
+        sh9: &sh,
+        specular: None,
+        photo_shadow: None,
+    };
+    let in_artefact = |x: usize, y: usize| *truth.mask.get(x, y) > 0.5;
+    let in_shadow = |x: usize, y: usize| {
+        *truth.mask.get(x, y) < 0.01 && truth.ratio.get(x, y).iter().sum::<f32>() / 3.0 < 0.95
+    };
+    let mut rows = Vec::new();
+    for config in &setup.configs {
+        let start = Instant::now();
+        let out: Composite = renderer.render(&inputs, config)?;
+        let render_ms = start.elapsed().as_secs_f64() * 1e3;
+        rows.push(ComparisonRow {
+            options: *config,
+            image: region_error(&out.composite, &truth.composite, |_, _| true),
+            artefact: region_error(&out.composite, &truth.composite, in_artefact),
+            shadow: region_error(&out.composite, &truth.composite, in_shadow),
+            render_ms,
+        });
+    }
+    Ok(ComparisonResult {
+        rows,
+        reference_seconds: truth.render_seconds,
+        samples_per_pixel: truth.samples_per_pixel,
+        size: (w, h),
+    })
+}
+
+/// The comparison as a Markdown table.
+pub fn markdown_table(setup: &ComparisonSetup, result: &ComparisonResult) -> String {
+    let mut s = format!(
+        "Scene `{}` at {}×{}, TRUE depth and lights; reference: {} spp in {:.2} s.\n\n\
+         | shading | shadows | map | filter | MAE image | PSNR image | MAE artefact | PSNR artefact | MAE shadow | PSNR shadow | render ms |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
+        setup.scene, result.size.0, result.size.1, result.samples_per_pixel, result.reference_seconds
+    );
+    for r in &result.rows {
+        s.push_str(&format!(
+            "| {:?} | {:?} | {} | {} | {:.4} | {:.2} | {:.4} | {:.2} | {:.4} | {:.2} | {:.1} |\n",
+            r.options.shading,
+            r.options.shadows,
+            r.options.shadow_map_size,
+            r.options.filter_radius,
+            r.image.mae,
+            r.image.psnr,
+            r.artefact.mae,
+            r.artefact.psnr,
+            r.shadow.mae,
+            r.shadow.psnr,
+            r.render_ms
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::{GpuContext, GpuOptions, ShadingMode, ShadowMode};
+
+    #[test]
+    fn constant_environment_projects_to_its_radiance() {
+        let env = Raster::filled(64, 32, [0.25f32, 0.5, 1.0]);
+        let sh = sh9_from_equirect(&env);
+        for n in [Vec3::X, -Vec3::Y, Vec3::new(0.3, 0.4, -0.866).normalize()] {
+            let d = sh.diffuse_radiance(n);
+            for (k, want) in [0.25f32, 0.5, 1.0].iter().enumerate() {
+                assert!((d[k] - want).abs() < 0.01 * want, "{n}: {d:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn light_records_become_lights() {
+        let rect = LightRecord {
+            kind: "rect".into(),
+            position: Some([0.0, 1.0, -2.0]),
+            normal: Some([0.0, -1.0, 0.0]),
+            size: Some([0.5, 0.5]),
+            radius: None,
+            direction: None,
+            angular_diameter_deg: None,
+            radiance: Some([1.0; 3]),
+            intensity: Some([0.25; 3]),
+            power: None,
+            irradiance: None,
+        };
+        let l = light_from_record(&rect).unwrap();
+        assert_eq!(l.kind, LightKind::Area);
+        // Equal area: π (d/2)² = 0.25.
+        assert!((std::f32::consts::PI * (l.size / 2.0).powi(2) - 0.25).abs() < 1e-6);
+        let broken = LightRecord {
+            intensity: None,
+            ..rect
+        };
+        assert!(light_from_record(&broken)
+            .unwrap_err()
+            .to_string()
+            .contains("intensity"));
+    }
+
+    /// `cargo test --release --lib render::compare -- --ignored --nocapture`: the table of the
+    /// renderer against the path tracer on `room` (TRUE depth and lights).
+    #[test]
+    #[ignore]
+    fn room_against_the_reference() {
+        let gpu = GpuContext::new(&GpuOptions::default()).unwrap();
+        let renderer = Renderer::new(&gpu).unwrap();
+        let mut configs = Vec::new();
+        for shading in [ShadingMode::Pbr, ShadingMode::Thesis] {
+            for shadows in [
+                ShadowMode::ThesisEsm,
+                ShadowMode::Evsm,
+                ShadowMode::Pcss,
+                ShadowMode::Off,
+            ] {
+                configs.push(RenderOptions {
+                    shading,
+                    shadows,
+                    ..RenderOptions::default()
+                });
+            }
+        }
+        for size in [512, 2048, 4096] {
+            configs.push(RenderOptions {
+                shadow_map_size: size,
+                shadows: ShadowMode::Pcss,
+                ..RenderOptions::default()
+            });
+        }
+        for filter_radius in [0, 4, 8] {
+            configs.push(RenderOptions {
+                filter_radius,
+                ..RenderOptions::default()
+            });
+        }
+        let width: u32 = std::env::var("PARALLAX_COMPARE_WIDTH")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(160);
+        let setup = ComparisonSetup::room(width, 64, configs);
+        let result = compare_with_reference(&renderer, &setup).unwrap();
+        println!("{}", markdown_table(&setup, &result));
+        for r in &result.rows {
+            assert!(r.image.mae.is_finite() && r.artefact.pixels > 0 && r.shadow.pixels > 0);
+        }
+    }
+}
