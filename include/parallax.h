@@ -180,6 +180,29 @@ typedef uint32_t plx_surface_kind;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// Levels of `plx_log_fn`, most severe first.
+enum plx_log_level
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // A call failed; the message is what `plx_last_error_message` returns for it.
+  PLX_LOG_LEVEL_ERROR = 0,
+  // A call succeeded but repaired or assumed something (the report's warnings).
+  PLX_LOG_LEVEL_WARN = 1,
+  // A product was computed, with its time.
+  PLX_LOG_LEVEL_INFO = 2,
+  // A product was reused or skipped, and why.
+  PLX_LOG_LEVEL_DEBUG = 3,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum plx_log_level plx_log_level;
+#else
+typedef uint32_t plx_log_level;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
 // Opaque. Thread-safe: may be shared by scenes on several threads. Freed by `plx_context_free`;
 // scenes made from it keep what they need alive, so it may be freed before them.
 typedef struct plx_context plx_context;
@@ -199,6 +222,30 @@ typedef struct plx_context_options {
   // NULL = the `WGPU_ADAPTER_NAME` environment variable, else the best adapter.
   const char *adapter_name;
 } plx_context_options;
+
+// An image in caller memory that Parallax fills: `height` rows of `stride` bytes starting at
+// `data`, each row `width` pixels of `format` (a `plx_pixel_format` value). 8-bit formats
+// receive sRGB-encoded colour, float formats linear colour (1.0 = the photo's white); grey
+// formats receive the luminance (Rec. 709). Bytes between the end of a row and the next stride
+// are left untouched, as is everything on failure.
+typedef struct plx_image_out {
+  // First byte of the top row.
+  uint8_t *data;
+  // Pixels per row: must equal the product's width.
+  uint32_t width;
+  // Rows: must equal the product's height.
+  uint32_t height;
+  // Bytes from the start of one row to the next (≥ width × bytes per pixel).
+  size_t stride;
+  // A `plx_pixel_format` value.
+  uint32_t format;
+} plx_image_out;
+
+// Receives one log line: `level` is a `plx_log_level` value, `message` a NUL-terminated UTF-8
+// string valid only during the call. Called on the thread that made the Parallax call, possibly
+// several threads at once: it must be thread-safe, must not unwind (no C++ exception, no
+// longjmp) and must not call functions on the scene being logged.
+typedef void (*plx_log_fn)(void *user_data, uint32_t level, const char *message);
 
 // Pinhole intrinsics of the left camera, pixels (x right, y down from the top-left corner;
 // the centre of pixel (x, y) is (x + 0.5, y + 0.5)).
@@ -262,6 +309,15 @@ typedef struct plx_mesh_view {
   // Number of indices (3 × triangles).
   size_t index_count;
 } plx_mesh_view;
+
+// Receives a scene's progress: `stage` is the product's name (NUL-terminated, valid only during
+// the call; e.g. "stereo", "depth", "mesh.grid", "surfaces"), `fraction` 0 when it starts and 1
+// when it is done. Return 0 to go on, nonzero to cancel: the call then returns
+// `PLX_STATUS_CANCELLED`, before that product (at 0) or right after it (at 1; the product is
+// kept, so asking again resumes from there). The scene is unchanged otherwise. Called on the
+// thread that made the call; it must not unwind (no C++ exception, no longjmp) and must not call
+// functions on that scene (they fail as busy).
+typedef int32_t (*plx_progress_fn)(void *user_data, const char *stage, float fraction);
 
 // A planar surface of the scene, in the camera (= world) frame, metres.
 typedef struct plx_surface {
@@ -487,6 +543,41 @@ enum plx_status plx_context_new(const struct plx_context_options *options,
 // `context` is NULL or a live context not used by another thread during the call.
 void plx_context_free(struct plx_context *context);
 
+// Writes the photo (the left view of the stereo pair, opaque) into the host's image `out` in
+// any `plx_pixel_format` and stride; `out` must have the photo's size. An 8-bit photo written
+// to the same 8-bit layout comes back byte for byte. This is also the composite of a scene with
+// nothing inserted. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a stereo pair;
+// `SIZE_MISMATCH` when `out` has another size; `INVALID_ARGUMENT` (unknown format, stride shorter
+// than a row). On error `out` is untouched.
+//
+// # Safety
+// `scene` is a live scene; `out` points to a valid descriptor of writable memory.
+enum plx_status plx_scene_photo(struct plx_scene *scene, const struct plx_image_out *out);
+
+// Reads the stereo pair from two image files (PNG, JPEG, OpenEXR, Radiance HDR; 8-bit files are
+// sRGB, float files linear) and sets it like `plx_scene_set_stereo_pair`. The size is checked
+// against the context's pixel cap before decoding. Errors: `NULL_ARGUMENT`; `IO` (a file cannot
+// be read: the message names it); `FORMAT` (not a decodable image); `TOO_LARGE`;
+// `SIZE_MISMATCH` (the views differ in size, or differ from the host depth). On error the scene
+// is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `left_path` and `right_path` are NUL-terminated strings.
+enum plx_status plx_scene_load_stereo_pair(struct plx_scene *scene,
+                                           const char *left_path,
+                                           const char *right_path);
+
+// Sets the process-wide log callback (`NULL` = no logging, the default), its `user_data` (passed
+// back unchanged as the first argument) and the most detailed level it wants (`max_level`, a
+// `plx_log_level`: e.g. `PLX_LOG_LEVEL_WARN` gives errors and warnings). Replaces the previous
+// callback; once this returns the previous one is no longer called. Thread-safe. Errors:
+// `INVALID_ARGUMENT` for an unknown level (the callback is then unchanged).
+//
+// # Safety
+// `callback` is NULL or a function as described at `plx_log_fn`, valid with `user_data` until it
+// is replaced.
+enum plx_status plx_set_log_callback(plx_log_fn callback, void *user_data, uint32_t max_level);
+
 // Gives the scene the host's own depth of the photo (ARCore, a depth sensor, …) so that stereo
 // is skipped (the report shows `stereo` skipped, "host depth given"). `depth` holds `height` rows
 // of `width` floats, `stride_bytes` apart: metres along the optical axis, NaN, ±inf and ≤ 0 = no
@@ -577,6 +668,19 @@ enum plx_status plx_scene_set_mesh_options(struct plx_scene *scene,
 // `scene` is a live scene; `out` is writable.
 enum plx_status plx_scene_mesh(struct plx_scene *scene, struct plx_mesh_view *out);
 
+// Sets the scene's progress callback (`NULL` = none, the default) and its `user_data` (passed
+// back unchanged as the first argument). Every later call that computes products reports each
+// one as it starts and finishes; see `plx_progress_fn` for cancelling. Progress is reported
+// between products: one long product (stereo matching of a large pair) is not interrupted
+// inside. `plx_scene_clone` copies the callback.
+//
+// # Safety
+// `scene` is a live scene; `callback` is NULL or a function as described at `plx_progress_fn`,
+// valid with `user_data` until it is replaced or the scene is freed.
+enum plx_status plx_scene_set_progress_callback(struct plx_scene *scene,
+                                                plx_progress_fn callback,
+                                                void *user_data);
+
 // The support surfaces (planes found in the scene mesh), largest first: `*count` of them at
 // `*out` (NULL when there are none), valid until the scene changes. When depth gives no mesh
 // (no valid depth, too small an image) there are none and the report warns why. Errors:
@@ -643,6 +747,18 @@ enum plx_status plx_scene_place_on_ray(struct plx_scene *scene,
 // # Safety
 // `context` is a live context; `out` is writable.
 enum plx_status plx_scene_new(const struct plx_context *context, struct plx_scene **out);
+
+// Creates a new scene that starts as a copy of `scene`: the same inputs, options, artefacts,
+// progress callback and context, and the same computed products (depth, mesh, surfaces, …),
+// shared rather than copied, so the copy answers without recomputing them. Use it to run several
+// compositions of one reconstruction (other artefacts, placements, lights) side by side or on
+// several threads. From then on the two scenes change independently; each is freed with
+// `plx_scene_free`, in any order. Cheap: no pixel or mesh data is copied. Errors:
+// `NULL_ARGUMENT`.
+//
+// # Safety
+// `scene` is a live scene; `out` is writable.
+enum plx_status plx_scene_clone(struct plx_scene *scene, struct plx_scene **out);
 
 // Frees a scene (NULL allowed).
 //

@@ -14,10 +14,10 @@ use crate::context::Context;
 use crate::error::{Error, Result};
 use crate::image::{Image, ImageView, Raster};
 use crate::stereo::{self, Disparity, StereoOptions};
-use crate::trace::{StageStatus, Trace};
+use crate::trace::{Observer, StageStatus, Trace};
 
 /// A value set by the host, with the version it was set at (0 = never set).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Input<T> {
     value: Option<T>,
     version: u64,
@@ -47,6 +47,17 @@ impl<T> Default for Product<T> {
             value: None,
             computed_from: Vec::new(),
             generation: 0,
+        }
+    }
+}
+
+// Not derived: a clone shares the cached value (an `Arc`) whatever `T` is.
+impl<T> Clone for Product<T> {
+    fn clone(&self) -> Self {
+        Product {
+            value: self.value.clone(),
+            computed_from: self.computed_from.clone(),
+            generation: self.generation,
         }
     }
 }
@@ -84,10 +95,12 @@ impl<T> Product<T> {
         } else {
             "an input changed"
         };
+        trace.progress(name, 0.0)?;
         let value = trace.time(name, why, compute)?;
         self.value = Some(Arc::clone(&value));
         self.computed_from = versions.to_vec();
         self.generation += 1;
+        trace.progress(name, 1.0)?;
         Ok(value)
     }
 }
@@ -135,11 +148,15 @@ pub use reconstruction::HostDepth;
 ///
 /// Not thread-safe for concurrent calls (`Send`, not `Sync`): use one scene from one thread at a
 /// time; several scenes may share one [`Context`].
-#[derive(Debug)]
+///
+/// Cloning is cheap: the clone shares every cached product and the input images (`Arc`s), so
+/// several compositions of one reconstruction can go on side by side without redoing it; each
+/// copy then changes independently.
+#[derive(Debug, Clone)]
 pub struct Scene {
     context: Arc<Context>,
     next_version: u64,
-    stereo_pair: Input<StereoPair>,
+    stereo_pair: Input<Arc<StereoPair>>,
     calibration: Input<StereoCalibration>,
     stereo_options: Input<StereoSettings>,
     host_depth: Input<HostDepth>,
@@ -159,6 +176,8 @@ pub struct Scene {
     artefacts: artefacts::SceneArtefacts,
     lighting: lighting::SceneLighting,
     last_trace: Trace,
+    /// The host's progress/log hook, handed to each call's trace ([`Scene::set_observer`]).
+    observer: Option<Observer>,
 }
 
 impl Scene {
@@ -191,6 +210,7 @@ impl Scene {
                 t.finish();
                 t
             },
+            observer: None,
         }
     }
 
@@ -235,10 +255,10 @@ impl Scene {
                 )));
             }
         }
-        self.stereo_pair.value = Some(StereoPair {
+        self.stereo_pair.value = Some(Arc::new(StereoPair {
             left: left.to_owned_image(),
             right: right.to_owned_image(),
-        });
+        }));
         self.stereo_pair.version = self.bump();
         Ok(())
     }
@@ -364,6 +384,7 @@ impl Scene {
     /// Runs one product request with a fresh trace, kept afterwards as [`Scene::last_trace`].
     fn traced<T>(&mut self, request: impl FnOnce(&mut Self, &mut Trace) -> Result<T>) -> Result<T> {
         let mut trace = Trace::new();
+        trace.set_observer(self.observer.clone());
         let result = request(self, &mut trace);
         trace.finish();
         self.last_trace = trace;
@@ -465,6 +486,12 @@ impl Scene {
     /// The trace of the last call that asked for a product.
     pub fn last_trace(&self) -> &Trace {
         &self.last_trace
+    }
+
+    /// Sends the progress, records and warnings of every later call to `observer` (`None` stops);
+    /// its `progress` can cancel a call between products ([`crate::trace::TraceObserver`]).
+    pub fn set_observer(&mut self, observer: Option<Observer>) {
+        self.observer = observer;
     }
 }
 

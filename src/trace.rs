@@ -16,9 +16,48 @@
 //! `ms` is wall-clock milliseconds (0 for reused and skipped); `peak_rss_mb` is the process's peak
 //! resident memory in MiB where the OS reports it (Linux), else `null`.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// A host's view into calls while they run: progress with cancellation, and every record and
+/// warning as it is added (for a log). A [`crate::scene::Scene`] hands its observer to the trace
+/// of each call ([`Trace::set_observer`]).
+///
+/// Methods are called on the thread that made the call, in the order things happen. They must not
+/// call back into the scene being traced (it is busy).
+pub trait TraceObserver: Send + Sync {
+    /// A product starts being computed (`fraction` 0) or has been computed (`fraction` 1).
+    /// Return `false` to cancel the call: it then fails with [`Error::Cancelled`] before that
+    /// product (at 0) or right after it, keeping it cached (at 1).
+    fn progress(&self, stage: &str, fraction: f32) -> bool {
+        let _ = (stage, fraction);
+        true
+    }
+
+    /// A record was added (a product computed, reused or skipped).
+    fn record(&self, record: &StageRecord) {
+        let _ = record;
+    }
+
+    /// A warning was added.
+    fn warning(&self, message: &str) {
+        let _ = message;
+    }
+}
+
+/// A shared [`TraceObserver`].
+#[derive(Clone)]
+pub struct Observer(pub Arc<dyn TraceObserver>);
+
+impl std::fmt::Debug for Observer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Observer(..)")
+    }
+}
 
 /// What happened to one product during a call.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -54,6 +93,7 @@ pub struct Trace {
     /// Total time and peak memory, frozen by [`Trace::finish`] so the report of a past call does
     /// not change when read twice.
     finished: Option<(f64, Option<f64>)>,
+    observer: Option<Observer>,
 }
 
 impl Trace {
@@ -64,6 +104,29 @@ impl Trace {
             warnings: Vec::new(),
             started: Some(Instant::now()),
             finished: None,
+            observer: None,
+        }
+    }
+
+    /// Sends this trace's progress, records and warnings to `observer` from now on.
+    pub fn set_observer(&mut self, observer: Option<Observer>) {
+        self.observer = observer;
+    }
+
+    /// Tells the observer that `stage` is at `fraction` (0 = starting, 1 = done).
+    ///
+    /// # Errors
+    /// `Cancelled` when the observer asks to stop.
+    pub fn progress(&self, stage: &str, fraction: f32) -> Result<()> {
+        match &self.observer {
+            Some(o) if !o.0.progress(stage, fraction) => {
+                Err(Error::Cancelled(if fraction <= 0.0 {
+                    format!("the progress callback stopped the call before `{stage}`")
+                } else {
+                    format!("the progress callback stopped the call after `{stage}` (kept)")
+                }))
+            }
+            _ => Ok(()),
         }
     }
 
@@ -86,12 +149,16 @@ impl Trace {
         ms: f64,
         why: impl Into<String>,
     ) {
-        self.stages.push(StageRecord {
+        let record = StageRecord {
             name: name.into(),
             status,
             ms,
             why: why.into(),
-        });
+        };
+        if let Some(o) = &self.observer {
+            o.0.record(&record);
+        }
+        self.stages.push(record);
     }
 
     /// Runs `f`, records it as computed with its time, and returns its value.
@@ -109,7 +176,11 @@ impl Trace {
 
     /// Adds a warning (a repaired input, a fallback taken, …).
     pub fn warn(&mut self, message: impl Into<String>) {
-        self.warnings.push(message.into());
+        let message = message.into();
+        if let Some(o) = &self.observer {
+            o.0.warning(&message);
+        }
+        self.warnings.push(message);
     }
 
     /// Records so far.

@@ -42,6 +42,10 @@ pub(crate) fn guard(slot: &ErrorSlot, body: impl FnOnce() -> Result<(), CallErro
     match catch_unwind(AssertUnwindSafe(body)) {
         Ok(Ok(())) => Status::Ok,
         Ok(Err(e)) => {
+            super::log::log(
+                super::log::plx_log_level::Error,
+                &format!("{:?}: {}", e.status, e.message),
+            );
             slot.set(e.message);
             e.status
         }
@@ -51,7 +55,9 @@ pub(crate) fn guard(slot: &ErrorSlot, body: impl FnOnce() -> Result<(), CallErro
                 .map(|s| s.to_string())
                 .or_else(|| payload.downcast_ref::<String>().cloned())
                 .unwrap_or_else(|| "unknown panic payload".into());
-            slot.set(format!("internal panic: {what}"));
+            let message = format!("internal panic: {what}");
+            super::log::log(super::log::plx_log_level::Error, &message);
+            slot.set(message);
             Status::Panic
         }
     }

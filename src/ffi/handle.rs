@@ -4,6 +4,7 @@
 //! `Handle<T>`, whose `#[repr(C)]` layout puts the [`HandleHeader`] first so that
 //! `plx_last_error_message(const void*)` can read the error of any handle kind.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 
 use super::boundary::{invalid, null_argument, CallError};
@@ -47,6 +48,10 @@ pub(crate) enum Kind {
 pub(crate) struct HandleHeader {
     kind: u64,
     pub error: ErrorSlot,
+    /// Set while a call uses the handle's value ([`Handle::enter`]), so that a call from a
+    /// callback of that same call, or from a second thread at the same time, fails cleanly
+    /// instead of aliasing the value.
+    busy: AtomicBool,
 }
 
 #[repr(C)]
@@ -62,6 +67,7 @@ impl<T> Handle<T> {
             header: HandleHeader {
                 kind: kind as u64,
                 error: ErrorSlot::new(),
+                busy: AtomicBool::new(false),
             },
             value,
         }))
@@ -73,6 +79,11 @@ impl<T> Handle<T> {
     /// `ptr` is NULL or came from `into_raw` with this `kind` and was not freed.
     pub(crate) unsafe fn free(ptr: *mut Handle<T>, kind: Kind) {
         if ptr.is_null() || (*ptr).header.kind != kind as u64 {
+            return;
+        }
+        // Freed from inside one of its own calls (a callback): freeing now would pull the value
+        // from under that call, so the handle is left alone.
+        if (*ptr).header.busy.load(Ordering::Acquire) {
             return;
         }
         (*ptr).header.kind = Kind::Freed as u64;
@@ -95,20 +106,50 @@ impl<T> Handle<T> {
         Ok(&*ptr)
     }
 
-    /// Mutable version of [`Handle::from_ptr`].
+    /// Exclusive use of the value behind `ptr` for one call: its header (for the error slot) and
+    /// its value as separate borrows. Fails with the header when another call is using the
+    /// value (re-entered from a callback, or a second thread), `Err((None, …))` for NULL or a
+    /// foreign pointer. The value is released when the returned [`Entered`] drops.
     ///
     /// # Safety
-    /// As `from_ptr`, and no other reference to the handle is live.
-    pub(crate) unsafe fn from_mut_ptr<'a>(
+    /// `ptr` is NULL or points to a live handle (of any kind).
+    pub(crate) unsafe fn enter<'a>(
         ptr: *mut Handle<T>,
         kind: Kind,
         name: &str,
-    ) -> Result<&'a mut Handle<T>, CallError> {
+    ) -> Result<Entered<'a, T>, (Option<&'a HandleHeader>, CallError)> {
         if ptr.is_null() {
-            return Err(null_argument(name));
+            return Err((None, null_argument(name)));
         }
-        check_kind(ptr as *const HandleHeader, kind, name)?;
-        Ok(&mut *ptr)
+        check_kind(ptr as *const HandleHeader, kind, name).map_err(|e| (None, e))?;
+        // Field projections through the raw pointer: the header may be shared with a concurrent
+        // call, the value is borrowed mutably only after winning the busy flag.
+        let header = &*std::ptr::addr_of!((*ptr).header);
+        if header.busy.swap(true, Ordering::Acquire) {
+            return Err((
+                Some(header),
+                invalid(format!(
+                    "`{name}` is busy with another call: a callback called back into it, or two \
+                     threads used it at once"
+                )),
+            ));
+        }
+        Ok(Entered {
+            header,
+            value: &mut *std::ptr::addr_of_mut!((*ptr).value),
+        })
+    }
+}
+
+/// A handle in use by one call (see [`Handle::enter`]).
+pub(crate) struct Entered<'a, T> {
+    pub header: &'a HandleHeader,
+    pub value: &'a mut T,
+}
+
+impl<T> Drop for Entered<'_, T> {
+    fn drop(&mut self) {
+        self.header.busy.store(false, Ordering::Release);
     }
 }
 

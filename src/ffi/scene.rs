@@ -24,6 +24,30 @@ pub(crate) struct SceneState {
     pub scene: Scene,
     /// The surfaces as C structs, with the product they were converted from.
     pub c_surfaces: Option<(Arc<crate::mesh::Surfaces>, Vec<super::query::plx_surface>)>,
+    /// The host's progress callback and the log bridge, installed as the scene's observer.
+    pub hooks: Arc<super::progress::SceneHooks>,
+}
+
+impl SceneState {
+    /// Boxes `scene` as a new C handle with its own hooks (the progress callback of `from`).
+    fn into_handle(mut scene: Scene, from: Option<&SceneState>) -> *mut plx_scene {
+        let hooks = super::progress::SceneHooks::new_observer(from.map(|s| &*s.hooks));
+        scene.set_observer(Some(hooks.observer()));
+        let state = SceneState {
+            scene,
+            c_surfaces: from.and_then(|s| s.c_surfaces.clone()),
+            hooks: Arc::clone(&hooks),
+        };
+        let handle = SceneHandle::into_raw(Kind::Scene, state);
+        hooks.set_tag(handle as usize);
+        handle.cast()
+    }
+}
+
+impl std::fmt::Debug for super::progress::SceneHooks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("SceneHooks(..)")
+    }
 }
 
 /// Creates an empty scene in `context`.
@@ -40,11 +64,31 @@ pub unsafe extern "C" fn plx_scene_new(
             return Err(null_argument("out"));
         }
         let context = ContextHandle::from_ptr(context.cast(), Kind::Context, "context")?;
-        let scene = SceneState {
-            scene: Scene::new(Arc::clone(&context.value)),
-            c_surfaces: None,
-        };
-        *out = SceneHandle::into_raw(Kind::Scene, scene).cast();
+        *out = SceneState::into_handle(Scene::new(Arc::clone(&context.value)), None);
+        Ok(())
+    })
+}
+
+/// Creates a new scene that starts as a copy of `scene`: the same inputs, options, artefacts,
+/// progress callback and context, and the same computed products (depth, mesh, surfaces, …),
+/// shared rather than copied, so the copy answers without recomputing them. Use it to run several
+/// compositions of one reconstruction (other artefacts, placements, lights) side by side or on
+/// several threads. From then on the two scenes change independently; each is freed with
+/// `plx_scene_free`, in any order. Cheap: no pixel or mesh data is copied. Errors:
+/// `NULL_ARGUMENT`.
+///
+/// # Safety
+/// `scene` is a live scene; `out` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_clone(
+    scene: *mut plx_scene,
+    out: *mut *mut plx_scene,
+) -> Status {
+    with_scene_state(scene, |state| {
+        if out.is_null() {
+            return Err(null_argument("out"));
+        }
+        *out = SceneState::into_handle(state.scene.clone(), Some(state));
         Ok(())
     })
 }
@@ -71,15 +115,16 @@ pub(crate) unsafe fn with_scene_state(
     scene: *mut plx_scene,
     body: impl FnOnce(&mut SceneState) -> Result<(), super::boundary::CallError>,
 ) -> Status {
-    let handle = match std::panic::catch_unwind(|| {
-        SceneHandle::from_mut_ptr(scene.cast(), Kind::Scene, "scene")
-    }) {
-        Ok(Ok(h)) => h,
-        Ok(Err(e)) => return guard(&GLOBAL_ERROR, || Err(e)),
-        Err(_) => return Status::Panic,
-    };
-    let Handle { header, value } = handle;
-    guard(&header.error, || body(value))
+    let entered =
+        match std::panic::catch_unwind(|| SceneHandle::enter(scene.cast(), Kind::Scene, "scene")) {
+            Ok(Ok(entered)) => entered,
+            Ok(Err((Some(header), e))) => return guard(&header.error, || Err(e)),
+            Ok(Err((None, e))) => return guard(&GLOBAL_ERROR, || Err(e)),
+            Err(_) => return Status::Panic,
+        };
+    let status = guard(&entered.header.error, || body(&mut *entered.value));
+    drop(entered);
+    status
 }
 
 /// Sets the rectified stereo pair (left and right views of equal size, any `plx_pixel_format`).

@@ -30,7 +30,7 @@ struct FileStamp {
 }
 
 /// The scene's artefact input and the cache of loaded files.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub(super) struct SceneArtefacts {
     set: ArtefactSet,
     version: u64,

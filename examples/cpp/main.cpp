@@ -1,0 +1,110 @@
+// A C++ host of Parallax: loads a stereo pair, reconstructs depth, mesh and support surfaces,
+// inserts a glTF model standing on the scene at a chosen pixel, and prints what it found as
+// key=value lines (read by tests/cpp.rs).
+//
+//   parallax_example_cpp LEFT.png RIGHT.png MODEL.glb FOCAL_PX BASELINE_M X Y
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "parallax.hpp"
+
+int main(int argc, char** argv) {
+    if (argc != 8) {
+        std::fprintf(stderr, "usage: %s LEFT RIGHT MODEL.glb FOCAL_PX BASELINE_M X Y\n", argv[0]);
+        return 2;
+    }
+    try {
+        parallax::set_log_callback(
+            [](parallax::LogLevel level, std::string_view message) {
+                if (level <= parallax::LogLevel::Warn)
+                    std::fprintf(stderr, "parallax: %.*s\n", static_cast<int>(message.size()),
+                                 message.data());
+            },
+            parallax::LogLevel::Warn);
+
+        parallax::Context context;
+        parallax::Scene scene(context);
+        scene.load_stereo_pair(argv[1], argv[2]);
+
+        // Disparity in pixels; its size is the photo's.
+        const parallax::FloatGrid disparity = scene.disparity();
+        const uint32_t w = disparity.width, h = disparity.height;
+        std::printf("disparity_centre_px=%.3f\n", disparity.at(w / 2, h / 2));
+        // The photo in a host buffer as a D3D/Unity BGRA8 texture would take it.
+        std::vector<uint8_t> bgra(static_cast<size_t>(w) * h * 4);
+        scene.photo(plx_image_out{bgra.data(), w, h, w * 4u, PLX_PIXEL_FORMAT_BGRA8});
+        double mean = 0;
+        for (size_t i = 0; i < bgra.size(); i += 4) mean += bgra[i + 1];
+        std::printf("photo_mean_green=%.2f\n", mean / (static_cast<double>(w) * h));
+
+        plx_calibration calibration{};
+        calibration.focal_px = std::atof(argv[4]);
+        calibration.baseline_m = std::atof(argv[5]);
+        calibration.cx = w / 2.0;
+        calibration.cy = h / 2.0;
+        scene.set_calibration(calibration);
+
+        int stages = 0;
+        scene.set_progress_callback([&](std::string_view, float fraction) {
+            stages += fraction == 1.0f;
+            return true;
+        });
+
+        parallax::FloatGrid depth = scene.depth();
+        std::printf("size=%ux%u\n", w, h);
+        std::printf("depth_centre_m=%.4f\n", depth.at(w / 2, h / 2));
+
+        parallax::Mesh mesh = scene.mesh();
+        std::printf("mesh_vertices=%zu\nmesh_triangles=%zu\n", mesh.vertex_count,
+                    mesh.triangle_count());
+
+        // Support surfaces found in the mesh (planes; none when the depth is too noisy).
+        const parallax::Span<plx_surface> surfaces = scene.surfaces();
+        std::printf("surfaces=%zu\n", surfaces.size());
+        const parallax::Vec3 up = scene.up();
+        std::printf("up=%.4f,%.4f,%.4f\n", up[0], up[1], up[2]);
+
+        // What the camera sees at the chosen pixel, and the model standing there, 0.3 m at most.
+        const float px = static_cast<float>(std::atof(argv[6]));
+        const float py = static_cast<float>(std::atof(argv[7]));
+        const plx_hit hit = scene.pick(px, py);
+        std::printf("hit=%u\npoint=%.4f,%.4f,%.4f\n", hit.hit, hit.point[0], hit.point[1],
+                    hit.point[2]);
+        const parallax::Scene::ArtefactId id = scene.add_artefact(argv[3]);
+        const parallax::Matrix4 m = scene.place_artefact(id, px, py, 0.3f, 30.0f);
+        const parallax::Bounds b = scene.artefact_bounds(id);
+        // The model's base centre and top centre in the world (column-major model → world).
+        auto world = [&](float x, float y, float z) {
+            parallax::Vec3 p{};
+            for (int r = 0; r < 3; r++) p[r] = m[r] * x + m[4 + r] * y + m[8 + r] * z + m[12 + r];
+            return p;
+        };
+        const float cx = (b.local_min[0] + b.local_max[0]) / 2;
+        const float cz = (b.local_min[2] + b.local_max[2]) / 2;
+        const parallax::Vec3 base = world(cx, b.local_min[1], cz);
+        const parallax::Vec3 top = world(cx, b.local_max[1], cz);
+        std::printf("artefact_base=%.4f,%.4f,%.4f\n", base[0], base[1], base[2]);
+        std::printf("artefact_top=%.4f,%.4f,%.4f\n", top[0], top[1], top[2]);
+        std::printf("artefact_warnings=%zu\n", scene.artefact_warnings(id).size());
+
+        // Several compositions of one reconstruction: the clone reuses depth and mesh.
+        parallax::Scene variant = scene.clone();
+        variant.remove_artefact(id);
+        variant.mesh();
+        std::printf("clone_reused_mesh=%d\n",
+                    variant.report().find("\"status\": \"reused\"") != std::string::npos);
+        std::printf("progress_stages=%d\n", stages);
+
+        // The composite goes here once the renderer's C function exists: it will write into a
+        // host image (plx_image_out) exactly like scene.photo() above.
+
+        parallax::set_log_callback(nullptr);
+        return 0;
+    } catch (const parallax::Error& e) {
+        std::fprintf(stderr, "parallax error %d: %s\n", static_cast<int>(e.status()), e.what());
+        return 1;
+    }
+}
