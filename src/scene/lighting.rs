@@ -11,7 +11,7 @@ use crate::image::Raster;
 use crate::light::{Light, Sh9};
 
 /// The lighting inputs the host may give instead of the estimates.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub(super) struct SceneLighting {
     pub(super) host_lights: Input<Vec<Light>>,
     pub(super) host_sh9: Input<Sh9>,
