@@ -180,6 +180,27 @@ typedef uint32_t plx_surface_kind;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// Kinds of `plx_light::kind`.
+enum plx_light_kind
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // Infinitely far away: `direction` and the angular size in degrees.
+  PLX_LIGHT_KIND_DIRECTIONAL = 0,
+  // A sphere of diameter `size` metres at `position` (0 = a point).
+  PLX_LIGHT_KIND_POINT = 1,
+  // A one-sided disc of diameter `size` metres at `position`, emitting along `direction`.
+  PLX_LIGHT_KIND_AREA = 2,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum plx_light_kind plx_light_kind;
+#else
+typedef uint32_t plx_light_kind;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
 // Levels of `plx_log_fn`, most severe first.
 enum plx_log_level
 #if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
@@ -222,6 +243,42 @@ typedef struct plx_context_options {
   // NULL = the `WGPU_ADAPTER_NAME` environment variable, else the best adapter.
   const char *adapter_name;
 } plx_context_options;
+
+// One light, in the left camera's frame (+X right, +Y up, the camera looks along −Z; metres).
+// `intensity` is linear RGB relative to the photo's exposure: for a directional light the
+// irradiance on a surface facing it, for point and area lights the radiant intensity (per
+// steradian; along the axis of an area light).
+typedef struct plx_light {
+  // A `plx_light_kind` value.
+  uint32_t kind;
+  // Centre, metres (ignored for directional lights).
+  float position[3];
+  // Unit direction the light travels (from the light to the scene); ignored for point lights.
+  float direction[3];
+  // Diameter in metres (point, area) or full angular diameter in degrees (directional,
+  // [0, 90)); 0 = hard shadows.
+  float size;
+  // Linear RGB intensity, every channel ≥ 0.
+  float intensity[3];
+  // Confidence of an estimate in [0, 1] (1 for the host's lights).
+  float confidence;
+} plx_light;
+
+// An image in caller memory: `height` rows of `stride` bytes starting at `data`; each row holds
+// `width` pixels of `format` (a `plx_pixel_format` value). The last row may end right after
+// its last pixel. Parallax copies what it keeps; the memory may be reused after the call.
+typedef struct plx_image {
+  // First byte of the top row.
+  const uint8_t *data;
+  // Pixels per row (> 0).
+  uint32_t width;
+  // Rows (> 0).
+  uint32_t height;
+  // Bytes from the start of one row to the next (≥ width × bytes per pixel).
+  size_t stride;
+  // A `plx_pixel_format` value.
+  uint32_t format;
+} plx_image;
 
 // An image in caller memory that Parallax fills: `height` rows of `stride` bytes starting at
 // `data`, each row `width` pixels of `format` (a `plx_pixel_format` value). 8-bit formats
@@ -351,22 +408,6 @@ typedef struct plx_hit {
   // Index of the triangle hit (into the indices of `plx_scene_mesh`, divided by 3).
   uint32_t triangle;
 } plx_hit;
-
-// An image in caller memory: `height` rows of `stride` bytes starting at `data`; each row holds
-// `width` pixels of `format` (a `plx_pixel_format` value). The last row may end right after
-// its last pixel. Parallax copies what it keeps; the memory may be reused after the call.
-typedef struct plx_image {
-  // First byte of the top row.
-  const uint8_t *data;
-  // Pixels per row (> 0).
-  uint32_t width;
-  // Rows (> 0).
-  uint32_t height;
-  // Bytes from the start of one row to the next (≥ width × bytes per pixel).
-  size_t stride;
-  // A `plx_pixel_format` value.
-  uint32_t format;
-} plx_image;
 
 // Calibration of a rectified pair, for `plx_scene_set_calibration`.
 typedef struct plx_calibration {
@@ -542,6 +583,80 @@ enum plx_status plx_context_new(const struct plx_context_options *options,
 // # Safety
 // `context` is NULL or a live context not used by another thread during the call.
 void plx_context_free(struct plx_context *context);
+
+// Replaces the estimated lights with `count` lights at `lights` (copied). `count` 0 (`lights`
+// may then be NULL) means no direct light at all: only the ambient term lights the artefacts.
+// To adjust one estimated light, read them with `plx_scene_lights`, change it and set them all.
+// Errors: `NULL_ARGUMENT`; `INVALID_ARGUMENT` naming the light and field (unknown kind, a
+// non-finite value, zero direction, negative size or intensity, angular size ≥ 90°, confidence
+// outside [0, 1]) or more than 64 lights. On error the scene is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `lights` points to `count` readable `plx_light`s (or is NULL when
+// `count` is 0).
+enum plx_status plx_scene_set_lights(struct plx_scene *scene,
+                                     const struct plx_light *lights,
+                                     size_t count);
+
+// Back to the estimated lights.
+//
+// # Safety
+// `scene` is a live scene.
+enum plx_status plx_scene_reset_lights(struct plx_scene *scene);
+
+// Replaces the estimated ambient light with 27 floats at `sh9`: nine RGB spherical-harmonics
+// coefficients in ARCore's order (coefficient-major, RGB each), in Filament's pre-scaled
+// irradiance convention: the diffuse radiance of a white surface with unit normal n is
+// `c0 + c1·y + c2·z + c3·x + c4·xy + c5·yz + c6·(3z² − 1) + c7·xz + c8·(x² − y²)`. NULL = back to
+// the estimate. Errors: `INVALID_ARGUMENT` for a non-finite coefficient (the scene is unchanged).
+//
+// # Safety
+// `scene` is a live scene; `sh9` is NULL or points to 27 readable floats.
+enum plx_status plx_scene_set_sh9(struct plx_scene *scene,
+                                  const float *sh9);
+
+// Replaces the estimated environment with the host's equirectangular map (copied): twice as
+// wide as high, the centre column looking along −Z (the camera's view), the top row +Y, in the
+// camera frame. Float formats are linear radiance relative to the photo's exposure; 8-bit
+// formats are decoded from sRGB (no inverse tone mapping: give a float map for HDR). Float
+// values are read as every float image is: NaN and negatives as 0, +inf as the largest float
+// (the SH projection clamps very bright texels, so it stays finite). NULL = back to the
+// estimate. Errors: `NULL_ARGUMENT` (`image->data`); `INVALID_ARGUMENT` (not 2:1, bad format or
+// stride); `TOO_LARGE` over the context's pixel cap. On error the scene is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `image` is NULL or a valid `plx_image`.
+enum plx_status plx_scene_set_environment_equirect(struct plx_scene *scene,
+                                                   const struct plx_image *image);
+
+// The lights in use (the host's, else the estimated ones): the total into `*count`, and the
+// first `min(capacity, total)` into `out` (NULL allowed when `capacity` is 0: ask for the count
+// first). Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a photo or depth when estimating; as
+// `plx_scene_depth`.
+//
+// # Safety
+// `scene` is a live scene; `out` points to `capacity` writable `plx_light`s (or is NULL with
+// `capacity` 0); `count` is writable.
+enum plx_status plx_scene_lights(struct plx_scene *scene,
+                                 struct plx_light *out,
+                                 size_t capacity,
+                                 size_t *count);
+
+// The main light, as AR platforms give it: `direction[3]` the unit vector from the scene towards
+// the light (for a point or area light, from the camera-frame origin's side of the scene: the
+// direction towards its centre from 2 m in front of the camera), `rgb[3]` its intensity (see
+// `plx_light`). With an empty host light list both are zero. Errors as `plx_scene_lights`.
+//
+// # Safety
+// `scene` is a live scene; `direction` and `rgb` point to 3 writable floats each.
+enum plx_status plx_scene_main_light(struct plx_scene *scene, float *direction, float *rgb);
+
+// The ambient light as 27 floats into `out` (the convention of `plx_scene_set_sh9`): the
+// host's, else projected from the environment. Errors as `plx_scene_lights`.
+//
+// # Safety
+// `scene` is a live scene; `out` points to 27 writable floats.
+enum plx_status plx_scene_sh9(struct plx_scene *scene, float *out);
 
 // Writes the photo (the left view of the stereo pair, opaque) into the host's image `out` in
 // any `plx_pixel_format` and stride; `out` must have the photo's size. An 8-bit photo written

@@ -20,6 +20,7 @@ pub mod context;
 mod handle;
 pub mod image;
 pub mod image_io;
+pub mod light;
 pub mod log;
 pub mod mesh;
 pub mod progress;

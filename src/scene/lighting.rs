@@ -5,10 +5,16 @@
 //! are inputs with their own versions, so setting one recomputes only what depends on it and never
 //! the reconstruction.
 
-use super::{Input, Scene};
+use std::sync::Arc;
+
+use super::{Input, Product, Scene};
 use crate::error::{Error, Result};
 use crate::image::Raster;
-use crate::light::{Light, Sh9};
+use crate::light::{
+    estimate_lighting, Environment, EnvironmentOptions, EstimateOptions, Light, LightingEstimate,
+    Sh9,
+};
+use crate::trace::Trace;
 
 /// The lighting inputs the host may give instead of the estimates.
 #[derive(Debug, Default, Clone)]
@@ -16,6 +22,10 @@ pub(super) struct SceneLighting {
     pub(super) host_lights: Input<Vec<Light>>,
     pub(super) host_sh9: Input<Sh9>,
     pub(super) host_environment: Input<Raster<[f32; 3]>>,
+    /// Shadow mask, sources, fitted lights and the photo's environment, estimated together.
+    estimate: Product<LightingEstimate>,
+    /// The environment built from the host's map.
+    host_environment_built: Product<Environment>,
 }
 
 /// The most lights a scene accepts (each may get a shadow map).
@@ -116,5 +126,223 @@ impl Scene {
     /// The host's lights, if it set them.
     pub fn host_lights(&self) -> Option<&[Light]> {
         self.lighting.host_lights.value.as_deref()
+    }
+
+    /// The lighting estimated from the photo (product `lighting`): shadow mask, light sources in
+    /// view, the fitted main light and ambient, and the environment around the insertion point
+    /// (see [`estimate_lighting`]). When nothing explains the shading, the fit falls back to one
+    /// light above the scene and the trace warns.
+    ///
+    /// # Errors
+    /// `NotAvailable` without a stereo pair (the photo) or depth; as [`Scene::depth`] and
+    /// [`estimate_lighting`].
+    pub fn lighting_estimate(&mut self) -> Result<Arc<LightingEstimate>> {
+        self.traced(|scene, trace| scene.lighting_estimate_traced(trace))
+    }
+
+    fn lighting_estimate_traced(&mut self, trace: &mut Trace) -> Result<Arc<LightingEstimate>> {
+        let pair = self.loaded_pair_traced(trace)?;
+        let base = self.depth_and_intrinsics(trace)?;
+        let camera = self.camera_traced(&base, trace)?;
+        let surfaces = self.surfaces_traced(&base, trace)?;
+        let versions = [
+            self.loaded_pair.generation,
+            self.depth.generation,
+            self.camera.generation,
+            self.surfaces.generation,
+        ];
+        let depth = Arc::clone(&base.0);
+        let estimate =
+            self.lighting
+                .estimate
+                .get_or_compute("lighting", &versions, trace, |_| {
+                    estimate_lighting(
+                        &pair.left_rgb,
+                        &depth,
+                        None,
+                        &camera,
+                        surfaces.up.to_array(),
+                        None,
+                        &EstimateOptions::default(),
+                    )
+                })?;
+        if estimate.fit.fallback_used {
+            trace.warn(
+                "lighting: the photo's shading is not explained by any light; using one light above the scene",
+            );
+        }
+        Ok(estimate)
+    }
+
+    /// The lights the renderer uses: the host's ([`Scene::set_lights`]) when given, else the
+    /// estimated ones (in-view sources and the fitted light).
+    ///
+    /// # Errors
+    /// As [`Scene::lighting_estimate`] when estimating.
+    pub fn lights(&mut self) -> Result<Vec<Light>> {
+        if let Some(lights) = &self.lighting.host_lights.value {
+            let lights = lights.clone();
+            return self.traced(|_, trace| {
+                trace.record(
+                    "lighting",
+                    crate::trace::StageStatus::Skipped,
+                    0.0,
+                    "host lights given",
+                );
+                Ok(lights)
+            });
+        }
+        Ok(self.lighting_estimate()?.fit.lights.clone())
+    }
+
+    /// The main light: the host's brightest light when it gave lights (`None` when it gave an
+    /// empty list), else the fitted main light.
+    ///
+    /// # Errors
+    /// As [`Scene::lights`].
+    pub fn main_light(&mut self) -> Result<Option<Light>> {
+        if let Some(lights) = &self.lighting.host_lights.value {
+            let brightest = lights.iter().copied().max_by(|a, b| {
+                let sum = |l: &Light| l.intensity.iter().sum::<f32>();
+                sum(a).total_cmp(&sum(b))
+            });
+            return Ok(brightest);
+        }
+        Ok(Some(self.lighting_estimate()?.fit.main))
+    }
+
+    /// The environment around the insertion point: built from the host's map when given, else
+    /// the estimate's.
+    ///
+    /// # Errors
+    /// As [`Environment::from_equirect`] for a host map, else as [`Scene::lighting_estimate`].
+    pub fn environment(&mut self) -> Result<Arc<Environment>> {
+        self.traced(|scene, trace| scene.environment_traced(trace))
+    }
+
+    fn environment_traced(&mut self, trace: &mut Trace) -> Result<Arc<Environment>> {
+        if let Some(map) = &self.lighting.host_environment.value {
+            let versions = [self.lighting.host_environment.version];
+            return self.lighting.host_environment_built.get_or_compute(
+                "environment",
+                &versions,
+                trace,
+                |_| Environment::from_equirect(map, &EnvironmentOptions::default()),
+            );
+        }
+        let estimate = self.lighting_estimate_traced(trace)?;
+        Ok(Arc::new(estimate.environment.clone()))
+    }
+
+    /// The ambient light as SH9: the host's ([`Scene::set_sh9`]), else projected from the
+    /// environment ([`Scene::environment`]).
+    ///
+    /// # Errors
+    /// As [`Scene::environment`].
+    pub fn sh9(&mut self) -> Result<Sh9> {
+        if let Some(sh) = self.lighting.host_sh9.value {
+            return Ok(sh);
+        }
+        Ok(self.environment()?.sh9)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use crate::context::{Context, ContextOptions};
+    use crate::light::{Light, LightKind, Sh9};
+    use crate::scene::test_support::shifted_pair;
+    use crate::scene::Scene;
+    use crate::stereo::StereoOptions;
+    use crate::trace::StageStatus;
+
+    fn status(scene: &Scene, name: &str) -> Option<StageStatus> {
+        scene
+            .last_trace()
+            .stages()
+            .iter()
+            .find(|s| s.name == name)
+            .map(|s| s.status)
+    }
+
+    fn scene_with_pair() -> Scene {
+        let mut s = Scene::new(Arc::new(Context::new(ContextOptions::default()).unwrap()));
+        let (l, r) = shifted_pair(96, 48, 6);
+        s.set_stereo_pair(&l.view(), &r.view()).unwrap();
+        s.set_stereo_options(StereoOptions {
+            max_disparity: 16,
+            ..StereoOptions::default()
+        })
+        .unwrap();
+        s
+    }
+
+    #[test]
+    fn the_estimate_is_finite_cached_and_replaced_by_the_host() {
+        let mut s = scene_with_pair();
+        let estimate = s.lighting_estimate().unwrap();
+        assert_eq!(status(&s, "lighting"), Some(StageStatus::Computed));
+        let main = s.main_light().unwrap().unwrap();
+        main.validate().unwrap();
+        assert!(s.sh9().unwrap().to_array().iter().all(|v| v.is_finite()));
+        assert!(estimate
+            .shadow_mask
+            .pixels()
+            .iter()
+            .all(|m| (0.0..=1.0).contains(m)));
+        // Asked again: reused, not recomputed.
+        let again = s.lighting_estimate().unwrap();
+        assert!(Arc::ptr_eq(&estimate, &again));
+        assert_eq!(status(&s, "lighting"), Some(StageStatus::Reused));
+
+        // The host's lights replace the estimate without estimating.
+        let lamp = Light {
+            kind: LightKind::Point,
+            position: [0.0, 2.0, -3.0],
+            direction: [0.0; 3],
+            size: 0.1,
+            intensity: [5.0, 4.0, 3.0],
+            confidence: 1.0,
+        };
+        s.set_lights(vec![lamp]).unwrap();
+        assert_eq!(s.lights().unwrap(), vec![lamp]);
+        assert_eq!(status(&s, "lighting"), Some(StageStatus::Skipped));
+        assert_eq!(s.main_light().unwrap(), Some(lamp));
+        s.set_lights(Vec::new()).unwrap();
+        assert_eq!(s.main_light().unwrap(), None);
+        let bad = Light {
+            intensity: [f32::NAN, 0.0, 0.0],
+            ..lamp
+        };
+        let e = s.set_lights(vec![lamp, bad]).unwrap_err();
+        assert!(e.to_string().contains("light 1"), "{e}");
+        assert!(s.lights().unwrap().is_empty(), "unchanged on error");
+        s.clear_lights();
+        assert_eq!(s.lights().unwrap(), estimate.fit.lights);
+
+        // The host's SH9 wins; a map is projected when there is no SH9.
+        let mut sh = Sh9::default();
+        sh.coefficients[0] = [0.25; 3];
+        s.set_sh9(sh).unwrap();
+        assert_eq!(s.sh9().unwrap(), sh);
+        s.clear_sh9();
+        s.set_environment_equirect(crate::image::Raster::filled(32, 16, [2.0; 3]))
+            .unwrap();
+        let projected = s.sh9().unwrap().coefficients[0];
+        assert!(
+            projected.iter().all(|c| (c - 2.0).abs() < 0.05),
+            "{projected:?}"
+        );
+        assert!(s
+            .set_environment_equirect(crate::image::Raster::filled(16, 16, [1.0; 3]))
+            .is_err());
+        assert!(s
+            .set_environment_equirect(crate::image::Raster::filled(32, 16, [f32::INFINITY; 3]))
+            .is_err());
+        // None of this touched the reconstruction.
+        s.lighting_estimate().unwrap();
+        assert_eq!(status(&s, "stereo"), Some(StageStatus::Reused));
     }
 }

@@ -22,7 +22,7 @@ use crate::mesh::{
 use crate::trace::{StageStatus, Trace};
 
 /// The depth product and the camera intrinsics for it: what every geometric product starts from.
-type Base = (Arc<Raster<f32>>, Camera);
+pub(super) type Base = (Arc<Raster<f32>>, Camera);
 
 /// Depth given by the host (ARCore, a depth sensor, its own reconstruction) instead of stereo,
 /// as the scene keeps it after [`Scene::set_depth`].
@@ -193,7 +193,7 @@ impl Scene {
         }
     }
 
-    fn depth_and_intrinsics(&mut self, trace: &mut Trace) -> Result<Base> {
+    pub(super) fn depth_and_intrinsics(&mut self, trace: &mut Trace) -> Result<Base> {
         let depth = self.depth_traced(trace)?;
         let camera = self.intrinsics(depth.width() as u32, depth.height() as u32, trace)?;
         Ok((depth, camera))
@@ -212,7 +212,7 @@ impl Scene {
         })
     }
 
-    fn camera_traced(&mut self, base: &Base, trace: &mut Trace) -> Result<Arc<Camera>> {
+    pub(super) fn camera_traced(&mut self, base: &Base, trace: &mut Trace) -> Result<Arc<Camera>> {
         let (depth, intrinsics) = base;
         let intrinsics = *intrinsics;
         let versions = [
@@ -363,7 +363,11 @@ impl Scene {
         })
     }
 
-    fn surfaces_traced(&mut self, base: &Base, trace: &mut Trace) -> Result<Arc<Surfaces>> {
+    pub(super) fn surfaces_traced(
+        &mut self,
+        base: &Base,
+        trace: &mut Trace,
+    ) -> Result<Arc<Surfaces>> {
         let camera = base.1;
         // Options and camera are valid by construction, so InvalidArgument here is the depth's.
         let grid = match self.grid_mesh_traced(base, trace) {

@@ -1,0 +1,102 @@
+/* The host's lighting replaces the estimates: lights, SH9 and an environment map, with every
+ * validation error named, and the values read back exactly. */
+#include "check.h"
+
+int main(void) {
+    plx_context *ctx = NULL;
+    CHECK_STATUS(NULL, plx_context_new(NULL, &ctx), PLX_STATUS_OK);
+    plx_scene *scene = NULL;
+    CHECK_STATUS(ctx, plx_scene_new(ctx, &scene), PLX_STATUS_OK);
+
+    /* Without a photo there is nothing to estimate from. */
+    size_t count = 99;
+    CHECK_STATUS(scene, plx_scene_lights(scene, NULL, 0, &count), PLX_STATUS_NOT_AVAILABLE);
+    CHECK(count == 99);
+
+    plx_light lights[2] = {
+        {PLX_LIGHT_KIND_DIRECTIONAL, {0, 0, 0}, {0, -1, 0}, 0.5f, {2, 2, 2}, 1},
+        {PLX_LIGHT_KIND_AREA, {0.5f, 2.5f, -2}, {0, -1, 0}, 0.4f, {8, 7, 6}, 0.8f},
+    };
+    CHECK_STATUS(scene, plx_scene_set_lights(scene, lights, 2), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_lights(scene, NULL, 0, &count), PLX_STATUS_OK);
+    CHECK(count == 2);
+    plx_light back[3];
+    memset(back, 0, sizeof back);
+    CHECK_STATUS(scene, plx_scene_lights(scene, back, 1, &count), PLX_STATUS_OK);
+    CHECK(count == 2);
+    CHECK(back[0].kind == PLX_LIGHT_KIND_DIRECTIONAL && back[0].size == 0.5f);
+    CHECK(back[1].kind == 0 && back[1].intensity[0] == 0); /* capacity 1: untouched */
+    CHECK_STATUS(scene, plx_scene_lights(scene, back, 3, &count), PLX_STATUS_OK);
+    CHECK(back[1].kind == PLX_LIGHT_KIND_AREA && back[1].intensity[1] == 7 &&
+          back[1].position[1] == 2.5f);
+
+    /* The main light is the brightest; its direction points towards it. */
+    float dir[3], rgb[3];
+    CHECK_STATUS(scene, plx_scene_main_light(scene, dir, rgb), PLX_STATUS_OK);
+    CHECK(rgb[0] == 8 && rgb[1] == 7 && rgb[2] == 6);
+    CHECK(dir[1] > 0.7f);
+
+    /* Bad lights are refused by name and leave the scene unchanged. */
+    plx_light bad = lights[0];
+    bad.intensity[1] = -1;
+    CHECK_STATUS(scene, plx_scene_set_lights(scene, &bad, 1), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "intensity");
+    bad = lights[0];
+    bad.kind = 7;
+    CHECK_STATUS(scene, plx_scene_set_lights(scene, &bad, 1), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "light kind");
+    bad = lights[0];
+    bad.direction[0] = bad.direction[1] = bad.direction[2] = 0;
+    CHECK_STATUS(scene, plx_scene_set_lights(scene, &bad, 1), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "direction");
+    CHECK_STATUS(scene, plx_scene_set_lights(scene, NULL, 1), PLX_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(scene, plx_scene_lights(scene, NULL, 0, &count), PLX_STATUS_OK);
+    CHECK(count == 2);
+
+    /* An empty list: no direct light at all. */
+    CHECK_STATUS(scene, plx_scene_set_lights(scene, NULL, 0), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_lights(scene, NULL, 0, &count), PLX_STATUS_OK);
+    CHECK(count == 0);
+    CHECK_STATUS(scene, plx_scene_main_light(scene, dir, rgb), PLX_STATUS_OK);
+    CHECK(rgb[0] == 0 && dir[0] == 0 && dir[1] == 0);
+    CHECK_STATUS(scene, plx_scene_reset_lights(scene), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_lights(scene, NULL, 0, &count), PLX_STATUS_NOT_AVAILABLE);
+
+    /* SH9 round trip; a NaN coefficient is refused. */
+    float sh[27], sh_back[27];
+    for (int i = 0; i < 27; i++) sh[i] = 0.01f * (float)i;
+    CHECK_STATUS(scene, plx_scene_set_sh9(scene, sh), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_sh9(scene, sh_back), PLX_STATUS_OK);
+    CHECK(memcmp(sh, sh_back, sizeof sh) == 0);
+    sh[5] = 0.0f / 0.0f;
+    CHECK_STATUS(scene, plx_scene_set_sh9(scene, sh), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "coefficient 5");
+    CHECK_STATUS(scene, plx_scene_sh9(scene, NULL), PLX_STATUS_NULL_ARGUMENT);
+
+    /* An environment map: the SH then comes from it (constant radiance 0.5 gives 0.5 diffuse
+     * radiance: only the first coefficient is non-zero). */
+    CHECK_STATUS(scene, plx_scene_set_sh9(scene, NULL), PLX_STATUS_OK);
+    float env[8 * 16 * 3];
+    for (int i = 0; i < 8 * 16 * 3; i++) env[i] = 0.5f;
+    plx_image image = {(const uint8_t *)env, 16, 8, 16 * 3 * sizeof(float), PLX_PIXEL_FORMAT_RGB_F32};
+    CHECK_STATUS(scene, plx_scene_set_environment_equirect(scene, &image), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_sh9(scene, sh_back), PLX_STATUS_OK);
+    for (int c = 0; c < 3; c++) CHECK(sh_back[c] > 0.45f && sh_back[c] < 0.55f);
+    for (int i = 3; i < 27; i++) CHECK(sh_back[i] > -0.02f && sh_back[i] < 0.02f);
+    image.width = 8; /* not 2:1 */
+    CHECK_STATUS(scene, plx_scene_set_environment_equirect(scene, &image), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "twice as wide");
+    image.width = 16;
+    /* NaN, negative and infinite texels are read as 0, 0 and the largest float: finite SH. */
+    env[6] = 0.0f / 0.0f;
+    env[7] = -1.0f;
+    env[8] = 1.0f / 0.0f;
+    CHECK_STATUS(scene, plx_scene_set_environment_equirect(scene, &image), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_sh9(scene, sh_back), PLX_STATUS_OK);
+    for (int i = 0; i < 27; i++) CHECK(sh_back[i] == sh_back[i] && sh_back[i] < 1e6f && sh_back[i] > -1e6f);
+    CHECK_STATUS(scene, plx_scene_set_environment_equirect(scene, NULL), PLX_STATUS_OK);
+
+    plx_scene_free(scene);
+    plx_context_free(ctx);
+    TEST_EXIT();
+}
