@@ -201,6 +201,48 @@ typedef uint32_t plx_light_kind;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// `plx_render_options::shading` values.
+enum plx_shading_mode
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // glTF 2.0 metallic-roughness (default).
+  PLX_SHADING_MODE_PBR = 0,
+  // The thesis' modified Blinn-Phong (eq. 3.27–3.30).
+  PLX_SHADING_MODE_THESIS = 1,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum plx_shading_mode plx_shading_mode;
+#else
+typedef uint32_t plx_shading_mode;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+// `plx_render_options::shadows` values.
+enum plx_shadow_mode
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // The thesis' exponential shadow maps with contact shadows (default).
+  PLX_SHADOW_MODE_THESIS_ESM = 0,
+  // Exponential variance shadow maps.
+  PLX_SHADOW_MODE_EVSM = 1,
+  // Percentage-closer soft shadows (penumbra grows with the light's size).
+  PLX_SHADOW_MODE_PCSS = 2,
+  // No shadows.
+  PLX_SHADOW_MODE_OFF = 3,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum plx_shadow_mode plx_shadow_mode;
+#else
+typedef uint32_t plx_shadow_mode;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
 // Levels of `plx_log_fn`, most severe first.
 enum plx_log_level
 #if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
@@ -244,6 +286,24 @@ typedef struct plx_context_options {
   const char *adapter_name;
 } plx_context_options;
 
+// An image in caller memory that Parallax fills: `height` rows of `stride` bytes starting at
+// `data`, each row `width` pixels of `format` (a `plx_pixel_format` value). 8-bit formats
+// receive sRGB-encoded colour, float formats linear colour (1.0 = the photo's white); grey
+// formats receive the luminance (Rec. 709). Bytes between the end of a row and the next stride
+// are left untouched, as is everything on failure.
+typedef struct plx_image_out {
+  // First byte of the top row.
+  uint8_t *data;
+  // Pixels per row: must equal the product's width.
+  uint32_t width;
+  // Rows: must equal the product's height.
+  uint32_t height;
+  // Bytes from the start of one row to the next (≥ width × bytes per pixel).
+  size_t stride;
+  // A `plx_pixel_format` value.
+  uint32_t format;
+} plx_image_out;
+
 // One light, in the left camera's frame (+X right, +Y up, the camera looks along −Z; metres).
 // `intensity` is linear RGB relative to the photo's exposure: for a directional light the
 // irradiance on a surface facing it, for point and area lights the radiant intensity (per
@@ -279,24 +339,6 @@ typedef struct plx_image {
   // A `plx_pixel_format` value.
   uint32_t format;
 } plx_image;
-
-// An image in caller memory that Parallax fills: `height` rows of `stride` bytes starting at
-// `data`, each row `width` pixels of `format` (a `plx_pixel_format` value). 8-bit formats
-// receive sRGB-encoded colour, float formats linear colour (1.0 = the photo's white); grey
-// formats receive the luminance (Rec. 709). Bytes between the end of a row and the next stride
-// are left untouched, as is everything on failure.
-typedef struct plx_image_out {
-  // First byte of the top row.
-  uint8_t *data;
-  // Pixels per row: must equal the product's width.
-  uint32_t width;
-  // Rows: must equal the product's height.
-  uint32_t height;
-  // Bytes from the start of one row to the next (≥ width × bytes per pixel).
-  size_t stride;
-  // A `plx_pixel_format` value.
-  uint32_t format;
-} plx_image_out;
 
 // Receives one log line: `level` is a `plx_log_level` value, `message` a NUL-terminated UTF-8
 // string valid only during the call. Called on the thread that made the Parallax call, possibly
@@ -408,6 +450,22 @@ typedef struct plx_hit {
   // Index of the triangle hit (into the indices of `plx_scene_mesh`, divided by 3).
   uint32_t triangle;
 } plx_hit;
+
+// How the composite is rendered. Initialise with `plx_render_options_init`, then change fields.
+typedef struct plx_render_options {
+  // `sizeof(plx_render_options)` as the caller compiled it.
+  size_t size;
+  // A `plx_shading_mode` value.
+  uint32_t shading;
+  // A `plx_shadow_mode` value.
+  uint32_t shadows;
+  // Shadow-map edge in texels, 512–4096 (default 1024; reduced to fit the device).
+  uint32_t shadow_map_size;
+  // Shadow filter radius in texels, 0–8 (default 2).
+  uint32_t filter_radius;
+  // Nonzero: anti-alias the artefacts' edges with 4× MSAA where the device supports it.
+  uint32_t msaa;
+} plx_render_options;
 
 // Calibration of a rectified pair, for `plx_scene_set_calibration`.
 typedef struct plx_calibration {
@@ -584,6 +642,30 @@ enum plx_status plx_context_new(const struct plx_context_options *options,
 // `context` is NULL or a live context not used by another thread during the call.
 void plx_context_free(struct plx_context *context);
 
+// Writes the photo (the left view of the stereo pair, opaque) into the host's image `out` in
+// any `plx_pixel_format` and stride; `out` must have the photo's size. An 8-bit photo written
+// to the same 8-bit layout comes back byte for byte. This is also the composite of a scene with
+// nothing inserted. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a stereo pair;
+// `SIZE_MISMATCH` when `out` has another size; `INVALID_ARGUMENT` (unknown format, stride shorter
+// than a row). On error `out` is untouched.
+//
+// # Safety
+// `scene` is a live scene; `out` points to a valid descriptor of writable memory.
+enum plx_status plx_scene_photo(struct plx_scene *scene, const struct plx_image_out *out);
+
+// Reads the stereo pair from two image files (PNG, JPEG, OpenEXR, Radiance HDR; 8-bit files are
+// sRGB, float files linear) and sets it like `plx_scene_set_stereo_pair`. The size is checked
+// against the context's pixel cap before decoding. Errors: `NULL_ARGUMENT`; `IO` (a file cannot
+// be read: the message names it); `FORMAT` (not a decodable image); `TOO_LARGE`;
+// `SIZE_MISMATCH` (the views differ in size, or differ from the host depth). On error the scene
+// is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `left_path` and `right_path` are NUL-terminated strings.
+enum plx_status plx_scene_load_stereo_pair(struct plx_scene *scene,
+                                           const char *left_path,
+                                           const char *right_path);
+
 // Replaces the estimated lights with `count` lights at `lights` (copied). `count` 0 (`lights`
 // may then be NULL) means no direct light at all: only the ambient term lights the artefacts.
 // To adjust one estimated light, read them with `plx_scene_lights`, change it and set them all.
@@ -657,30 +739,6 @@ enum plx_status plx_scene_main_light(struct plx_scene *scene, float *direction, 
 // # Safety
 // `scene` is a live scene; `out` points to 27 writable floats.
 enum plx_status plx_scene_sh9(struct plx_scene *scene, float *out);
-
-// Writes the photo (the left view of the stereo pair, opaque) into the host's image `out` in
-// any `plx_pixel_format` and stride; `out` must have the photo's size. An 8-bit photo written
-// to the same 8-bit layout comes back byte for byte. This is also the composite of a scene with
-// nothing inserted. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a stereo pair;
-// `SIZE_MISMATCH` when `out` has another size; `INVALID_ARGUMENT` (unknown format, stride shorter
-// than a row). On error `out` is untouched.
-//
-// # Safety
-// `scene` is a live scene; `out` points to a valid descriptor of writable memory.
-enum plx_status plx_scene_photo(struct plx_scene *scene, const struct plx_image_out *out);
-
-// Reads the stereo pair from two image files (PNG, JPEG, OpenEXR, Radiance HDR; 8-bit files are
-// sRGB, float files linear) and sets it like `plx_scene_set_stereo_pair`. The size is checked
-// against the context's pixel cap before decoding. Errors: `NULL_ARGUMENT`; `IO` (a file cannot
-// be read: the message names it); `FORMAT` (not a decodable image); `TOO_LARGE`;
-// `SIZE_MISMATCH` (the views differ in size, or differ from the host depth). On error the scene
-// is unchanged.
-//
-// # Safety
-// `scene` is a live scene; `left_path` and `right_path` are NUL-terminated strings.
-enum plx_status plx_scene_load_stereo_pair(struct plx_scene *scene,
-                                           const char *left_path,
-                                           const char *right_path);
 
 // Sets the process-wide log callback (`NULL` = no logging, the default), its `user_data` (passed
 // back unchanged as the first argument) and the most detailed level it wants (`max_level`, a
@@ -856,6 +914,32 @@ enum plx_status plx_scene_place_on_ray(struct plx_scene *scene,
                                        float size_m,
                                        float yaw_deg,
                                        float *out_matrix);
+
+// Fills `options` with the defaults and its `size`.
+//
+// # Safety
+// `options` is NULL or points to a writable `plx_render_options`.
+enum plx_status plx_render_options_init(struct plx_render_options *options);
+
+// Renders the composite: the photo with the scene's artefacts lit by its lights (the host's or
+// the estimated ones), hidden behind the photo's own geometry, casting shadows onto it. Writes
+// it into `out` (any `plx_pixel_format`, the photo's size, any stride; 8-bit formats as sRGB,
+// alpha 1) and, when `mask_out` is not NULL, the artefacts' coverage in [0, 1] into it (same
+// size; every channel the coverage). Without artefacts the composite is the photo and nothing
+// else is computed (no stereo, mesh, lights or GPU). Moving an artefact re-renders without
+// recomputing depth, mesh or lights; the report (`plx_scene_report`) shows each decision.
+// Errors: `NULL_ARGUMENT`; `INVALID_ARGUMENT` (options out of range, bad output format or
+// stride); `SIZE_MISMATCH` (an output of another size than the photo); `NOT_AVAILABLE` without a
+// stereo pair; `GPU` without a usable adapter (the scene stays usable); `UNSUPPORTED` in a build
+// without the `gpu` and `gltf` features. Nothing is written on error.
+//
+// # Safety
+// `scene` is a live scene; `options` is NULL (defaults) or valid for `options->size` bytes;
+// `out` and `mask_out` (nullable) are valid `plx_image_out`s.
+enum plx_status plx_scene_render(struct plx_scene *scene,
+                                 const struct plx_render_options *options,
+                                 const struct plx_image_out *out,
+                                 const struct plx_image_out *mask_out);
 
 // Creates an empty scene in `context`.
 //

@@ -136,6 +136,8 @@ struct StereoSettings {
 mod artefacts;
 mod lighting;
 mod reconstruction;
+#[cfg(all(feature = "gpu", feature = "gltf"))]
+mod render;
 
 #[cfg(all(test, feature = "gltf"))]
 pub(crate) use artefacts::box_glb;

@@ -25,6 +25,7 @@ pub mod log;
 pub mod mesh;
 pub mod progress;
 pub mod query;
+pub mod render;
 pub mod scene;
 pub mod status;
 pub mod stereo;

@@ -140,7 +140,10 @@ impl Scene {
         self.traced(|scene, trace| scene.lighting_estimate_traced(trace))
     }
 
-    fn lighting_estimate_traced(&mut self, trace: &mut Trace) -> Result<Arc<LightingEstimate>> {
+    pub(super) fn lighting_estimate_traced(
+        &mut self,
+        trace: &mut Trace,
+    ) -> Result<Arc<LightingEstimate>> {
         let pair = self.loaded_pair_traced(trace)?;
         let base = self.depth_and_intrinsics(trace)?;
         let camera = self.camera_traced(&base, trace)?;
@@ -220,7 +223,7 @@ impl Scene {
         self.traced(|scene, trace| scene.environment_traced(trace))
     }
 
-    fn environment_traced(&mut self, trace: &mut Trace) -> Result<Arc<Environment>> {
+    pub(super) fn environment_traced(&mut self, trace: &mut Trace) -> Result<Arc<Environment>> {
         if let Some(map) = &self.lighting.host_environment.value {
             let versions = [self.lighting.host_environment.version];
             return self.lighting.host_environment_built.get_or_compute(

@@ -305,7 +305,7 @@ impl Scene {
         })
     }
 
-    fn mesh_traced(&mut self, base: &Base, trace: &mut Trace) -> Result<Arc<SceneMesh>> {
+    pub(super) fn mesh_traced(&mut self, base: &Base, trace: &mut Trace) -> Result<Arc<SceneMesh>> {
         let grid = self.grid_mesh_traced(base, trace)?;
         let budget = self.mesh_options().max_triangles;
         let versions = [
