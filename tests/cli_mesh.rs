@@ -187,3 +187,61 @@ fn surfaces_from_host_depth_skip_stereo_and_find_the_floor() {
     let glb = std::fs::read(dir.path().join("m.glb")).unwrap();
     assert_eq!(&glb[..4], b"glTF");
 }
+
+#[test]
+fn composite_without_artefacts_is_the_photo_and_runs_no_stereo_and_bad_inserts_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    write_pair(dir.path(), 96, 48, 6);
+    let base = [
+        "composite",
+        "--quiet",
+        "--left",
+        "l.png",
+        "--right",
+        "r.png",
+        "--focal",
+        "60",
+        "--baseline",
+        "0.1",
+        "--out",
+        "c.png",
+        "--report",
+        "r.json",
+    ];
+    let report = run(&base, dir.path());
+    assert_eq!(stage(&report, "render")["status"], "skipped");
+    assert!(report["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|s| s["name"] != "stereo"));
+    let photo = Image::load(dir.path().join("l.png"), &Default::default()).unwrap();
+    let composite = Image::load(dir.path().join("c.png"), &Default::default()).unwrap();
+    assert_eq!(photo.to_linear_rgb(), composite.to_linear_rgb());
+
+    // The wall is 1 m away: a box stands against the pixel's surface and covers it.
+    let mut with_box = base.to_vec();
+    with_box.extend(["--insert", "box@48,24,0.2", "--out-mask", "m.png"]);
+    let report = run(&with_box, dir.path());
+    assert_eq!(stage(&report, "render")["status"], "computed");
+    let mask = Image::load(dir.path().join("m.png"), &Default::default()).unwrap();
+    let covered: Raster<[f32; 3]> = mask.to_linear_rgb();
+    assert!(covered.get(48, 24)[0] > 0.9, "{:?}", covered.get(48, 24));
+
+    for (insert, needle) in [
+        ("box@1,2,3,4,5", "expected WHAT@X,Y"),
+        ("teapot@10,10", "teapot"),
+        ("box@nan,1", "expected WHAT@X,Y"),
+    ] {
+        let mut args = base.to_vec();
+        args.extend(["--insert", insert]);
+        let out = parallax()
+            .current_dir(dir.path())
+            .args(&args)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{insert}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(needle), "{insert}: {stderr}");
+    }
+}

@@ -169,10 +169,10 @@ impl Scene {
                         &EstimateOptions::default(),
                     )
                 })?;
-        if estimate.fit.fallback_used {
-            trace.warn(
-                "lighting: the photo's shading is not explained by any light; using one light above the scene",
-            );
+        const FALLBACK: &str =
+            "lighting: the photo's shading is not explained by any light; using one light above the scene";
+        if estimate.fit.fallback_used && !trace.warnings().iter().any(|w| w == FALLBACK) {
+            trace.warn(FALLBACK);
         }
         Ok(estimate)
     }

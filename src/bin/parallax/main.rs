@@ -4,6 +4,8 @@
 //! message on stderr names what was wrong); 2 bad usage (unknown flag, missing argument).
 
 mod common;
+#[cfg(all(feature = "gpu", feature = "gltf"))]
+mod composite;
 mod depth;
 mod depth_input;
 mod eval;
@@ -37,6 +39,10 @@ enum Command {
     Lights(lights::Args),
     /// Disparity, depth and confidence of a rectified stereo pair.
     Depth(depth::Args),
+    /// A stereo pair with glTF artefacts rendered in: lit like the room, hidden behind its
+    /// objects, casting shadows onto it.
+    #[cfg(all(feature = "gpu", feature = "gltf"))]
+    Composite(composite::Args),
     /// Benchmarks against ground truth and peers (`parallax eval stereo`).
     Eval(eval::Args),
     /// Render a synthetic stereo scene with exact ground truth (Middlebury layout, composites).
@@ -54,6 +60,8 @@ fn main() -> std::process::ExitCode {
         Command::Surfaces(args) => surfaces::run(args),
         Command::Lights(args) => lights::run(args),
         Command::Depth(args) => depth::run(args),
+        #[cfg(all(feature = "gpu", feature = "gltf"))]
+        Command::Composite(args) => composite::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Synth(args) => synth::run(args),
         #[cfg(feature = "gltf")]

@@ -1,0 +1,156 @@
+//! `parallax composite`: a stereo pair with glTF artefacts rendered in (placed on the surface
+//! under a pixel), lit by the estimated or given lights, hidden behind the photo's geometry and
+//! casting shadows onto it.
+
+use std::path::PathBuf;
+
+use glam::{Mat4, Vec2};
+use parallax::artefact::{builtin_glb, BUILTIN_ARTEFACTS};
+use parallax::image::{Image, Raster};
+use parallax::render::{RenderOptions, ShadingMode, ShadowMode};
+use parallax::trace::Trace;
+use parallax::{Error, Result};
+
+use crate::common::CommonArgs;
+use crate::depth_input::{absorb, DepthInput};
+
+/// Arguments of `parallax composite`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    input: DepthInput,
+    /// An artefact to insert: `FILE.glb@X,Y[,SIZE_M[,YAW_DEG]]` (a .glb/.gltf file, or a
+    /// built-in: sphere, box, metal-sphere), standing on the surface seen at pixel (X, Y), its
+    /// largest side SIZE_M metres (default 0.2), turned YAW_DEG about up. Repeatable.
+    #[arg(long, value_name = "WHAT@X,Y[,SIZE_M[,YAW_DEG]]")]
+    insert: Vec<String>,
+    /// Shading: pbr (glTF metallic-roughness) or thesis (modified Blinn-Phong).
+    #[arg(long, default_value = "pbr")]
+    shading: String,
+    /// Shadows: esm (the thesis'), evsm, pcss or off.
+    #[arg(long, default_value = "esm")]
+    shadows: String,
+    /// Shadow-map edge in texels (512–4096).
+    #[arg(long, default_value_t = 1024)]
+    shadow_map_size: u32,
+    /// The composite as PNG (sRGB).
+    #[arg(long, value_name = "FILE.png")]
+    out: PathBuf,
+    /// The artefacts' coverage as a grey PNG.
+    #[arg(long, value_name = "FILE.png")]
+    out_mask: Option<PathBuf>,
+    /// The shadow ratio applied to the photo, as a grey PNG (1 = white).
+    #[arg(long, value_name = "FILE.png")]
+    out_shadow: Option<PathBuf>,
+    #[command(flatten)]
+    common: CommonArgs,
+}
+
+/// One `--insert` value, parsed.
+struct Insert {
+    what: String,
+    pixel: Vec2,
+    size_m: f32,
+    yaw_deg: f32,
+}
+
+fn parse_insert(text: &str) -> Result<Insert> {
+    let bad = || {
+        Error::invalid(format!(
+            "--insert {text:?}: expected WHAT@X,Y[,SIZE_M[,YAW_DEG]], e.g. box@320,400,0.3"
+        ))
+    };
+    let (what, numbers) = text.rsplit_once('@').ok_or_else(bad)?;
+    let values = numbers
+        .split(',')
+        .map(|v| v.trim().parse::<f32>().map_err(|_| bad()))
+        .collect::<Result<Vec<_>>>()?;
+    if what.is_empty() || !(2..=4).contains(&values.len()) || values.iter().any(|v| !v.is_finite())
+    {
+        return Err(bad());
+    }
+    Ok(Insert {
+        what: what.to_string(),
+        pixel: Vec2::new(values[0], values[1]),
+        size_m: values.get(2).copied().unwrap_or(0.2),
+        yaw_deg: values.get(3).copied().unwrap_or(0.0),
+    })
+}
+
+fn render_options(args: &Args) -> Result<RenderOptions> {
+    let shading = match args.shading.as_str() {
+        "pbr" => ShadingMode::Pbr,
+        "thesis" => ShadingMode::Thesis,
+        other => {
+            return Err(Error::invalid(format!(
+                "--shading {other:?}: pbr or thesis"
+            )))
+        }
+    };
+    let shadows = match args.shadows.as_str() {
+        "esm" => ShadowMode::ThesisEsm,
+        "evsm" => ShadowMode::Evsm,
+        "pcss" => ShadowMode::Pcss,
+        "off" => ShadowMode::Off,
+        other => {
+            return Err(Error::invalid(format!(
+                "--shadows {other:?}: esm, evsm, pcss or off"
+            )))
+        }
+    };
+    let options = RenderOptions {
+        shading,
+        shadows,
+        shadow_map_size: args.shadow_map_size,
+        ..RenderOptions::default()
+    };
+    options.validate()?;
+    Ok(options)
+}
+
+fn grey_png(raster: &Raster<f32>, path: &PathBuf) -> Result<()> {
+    Image::from_linear_rgb(&raster.map(|v| [v.clamp(0.0, 1.0); 3])).save_png(path)
+}
+
+/// Inserts the artefacts, renders and writes what was asked for.
+pub fn run(args: Args) -> Result<()> {
+    let options = render_options(&args)?;
+    let inserts = args
+        .insert
+        .iter()
+        .map(|t| parse_insert(t))
+        .collect::<Result<Vec<_>>>()?;
+    let mut trace = Trace::new();
+    let loaded = args.input.load(&mut trace)?;
+    let mut scene = loaded.scene;
+    let spinner = args.common.spinner("rendering the composite");
+    for insert in &inserts {
+        let id = if BUILTIN_ARTEFACTS.contains(&insert.what.as_str()) {
+            scene.add_artefact_bytes(&builtin_glb(&insert.what)?, Mat4::IDENTITY)?
+        } else {
+            scene.add_artefact_path(&insert.what, Mat4::IDENTITY)?
+        };
+        let placed =
+            scene.place_artefact(id, insert.pixel, insert.size_m, insert.yaw_deg.to_radians());
+        absorb(&mut trace, &scene);
+        placed.map_err(|e| match e {
+            Error::InvalidArgument(m) => Error::invalid(format!("--insert {}: {m}", insert.what)),
+            other => other,
+        })?;
+    }
+    let composite = scene.render(&options);
+    absorb(&mut trace, &scene);
+    let composite = composite?;
+    spinner.finish_and_clear();
+    Image::from_linear_rgb(&composite.composite).save_png(&args.out)?;
+    if let Some(path) = &args.out_mask {
+        grey_png(&composite.mask, path)?;
+    }
+    if let Some(path) = &args.out_shadow {
+        grey_png(
+            &composite.shadow_ratio.map(|r| (r[0] + r[1] + r[2]) / 3.0),
+            path,
+        )?;
+    }
+    args.common.finish(&trace)
+}
