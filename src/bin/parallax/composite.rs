@@ -2,17 +2,20 @@
 //! under a pixel), lit by the estimated or given lights, hidden behind the photo's geometry and
 //! casting shadows onto it.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Vec2};
 use parallax::artefact::{builtin_glb, BUILTIN_ARTEFACTS};
 use parallax::image::{Image, Raster};
-use parallax::render::{RenderOptions, ShadingMode, ShadowMode};
+use parallax::render::{Composite, RenderOptions, ShadingMode, ShadowMode};
+use parallax::scene::Scene;
+use parallax::stereo;
 use parallax::trace::Trace;
 use parallax::{Error, Result};
 
 use crate::common::CommonArgs;
 use crate::depth_input::{absorb, DepthInput};
+use crate::previews::{lights_preview, normals_preview, surfaces_preview};
 
 /// Arguments of `parallax composite`.
 #[derive(clap::Args, Debug)]
@@ -42,6 +45,10 @@ pub struct Args {
     /// The shadow ratio applied to the photo, as a grey PNG (1 = white).
     #[arg(long, value_name = "FILE.png")]
     out_shadow: Option<PathBuf>,
+    /// Also write every intermediate product into DIR: disparity, depth, mesh normals, support
+    /// surfaces, lights, shadow ratio, artefact mask and the composite (see `write_debug_dir`).
+    #[arg(long, value_name = "DIR")]
+    debug_dir: Option<PathBuf>,
     #[command(flatten)]
     common: CommonArgs,
 }
@@ -108,7 +115,7 @@ fn render_options(args: &Args) -> Result<RenderOptions> {
     Ok(options)
 }
 
-fn grey_png(raster: &Raster<f32>, path: &PathBuf) -> Result<()> {
+fn grey_png(raster: &Raster<f32>, path: &Path) -> Result<()> {
     Image::from_linear_rgb(&raster.map(|v| [v.clamp(0.0, 1.0); 3])).save_png(path)
 }
 
@@ -141,6 +148,9 @@ pub fn run(args: Args) -> Result<()> {
     let composite = scene.render(&options);
     absorb(&mut trace, &scene);
     let composite = composite?;
+    if let Some(dir) = &args.debug_dir {
+        write_debug_dir(&mut scene, &composite, dir, &mut trace)?;
+    }
     spinner.finish_and_clear();
     Image::from_linear_rgb(&composite.composite).save_png(&args.out)?;
     if let Some(path) = &args.out_mask {
@@ -153,4 +163,70 @@ pub fn run(args: Args) -> Result<()> {
         )?;
     }
     args.common.finish(&trace)
+}
+
+/// Writes the products behind a composite into `dir` (created if missing), for people to look
+/// at: `disparity.pfm` and `disparity.png` (when depth came from stereo), `depth.pfm` (metres),
+/// `normals.png` (mesh vertex normals, xyz → rgb), `surfaces.json` and `surfaces.png`,
+/// `lights.json` (the lights rendered with) and `lights.png` (shadow mask, light blobs, main
+/// light direction), `shadow_ratio.png`, `mask.png` and `composite.png`. Products the render
+/// reused are not recomputed; the others (e.g. surfaces) are, and appear in `trace`.
+///
+/// # Errors
+/// `Io` when a file cannot be written; as the scene's products.
+pub fn write_debug_dir(
+    scene: &mut Scene,
+    composite: &Composite,
+    dir: &Path,
+    trace: &mut Trace,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    if scene.host_depth().is_none() {
+        let disparity = scene.disparity();
+        absorb(trace, scene);
+        let disparity = disparity?;
+        disparity.disparity.write_pfm(dir.join("disparity.pfm"))?;
+        stereo::preview::colorize(&disparity.disparity, 0.0)?
+            .save_png(dir.join("disparity.png"))?;
+    }
+    let depth = scene.depth();
+    absorb(trace, scene);
+    let depth = depth?;
+    depth.write_pfm(dir.join("depth.pfm"))?;
+    let photo = scene.loaded_pair();
+    absorb(trace, scene);
+    let photo = photo?.left_rgb.clone();
+    let camera = scene.camera();
+    absorb(trace, scene);
+    let camera = camera?;
+    let mesh = scene.mesh();
+    absorb(trace, scene);
+    let mesh = mesh?;
+    Image::from_linear_rgb(&normals_preview(&mesh, photo.width(), photo.height()))
+        .save_png(dir.join("normals.png"))?;
+    let surfaces = scene.surfaces();
+    absorb(trace, scene);
+    let surfaces = surfaces?;
+    write_json(&dir.join("surfaces.json"), &*surfaces)?;
+    Image::from_linear_rgb(&surfaces_preview(&photo, &depth, &camera, &surfaces))
+        .save_png(dir.join("surfaces.png"))?;
+    let lights = scene.lights();
+    absorb(trace, scene);
+    write_json(&dir.join("lights.json"), &lights?)?;
+    let estimate = scene.lighting_estimate();
+    absorb(trace, scene);
+    Image::from_linear_rgb(&lights_preview(&photo, &*estimate?, &camera))
+        .save_png(dir.join("lights.png"))?;
+    grey_png(
+        &composite.shadow_ratio.map(|r| (r[0] + r[1] + r[2]) / 3.0),
+        &dir.join("shadow_ratio.png"),
+    )?;
+    grey_png(&composite.mask, &dir.join("mask.png"))?;
+    Image::from_linear_rgb(&composite.composite).save_png(dir.join("composite.png"))
+}
+
+fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let json = serde_json::to_string_pretty(value)
+        .map_err(|e| Error::Internal(format!("{}: {e}", path.display())))?;
+    std::fs::write(path, json).map_err(|e| Error::io(path, e))
 }
