@@ -151,6 +151,8 @@ fn composite_debug_dir_holds_the_products_and_moving_nothing_recomputes_nothing(
             "sphere@96,110,0.25",
             "--out",
             "c.png",
+            "--light",
+            "directional@0.2,-1,-0.4@3,3,2.8@1.5",
             "--debug-dir",
             "debug",
             "--report",
@@ -187,6 +189,46 @@ fn composite_debug_dir_holds_the_products_and_moving_nothing_recomputes_nothing(
         1,
         "{stereo:?}"
     );
+    // The host's light replaced the estimate: the render skipped the lighting stage.
+    assert_eq!(stage_status(&report, "lighting")[0], "skipped");
+    let lights = json(&debug.join("lights.json"));
+    let lights = lights.as_array().unwrap();
+    assert_eq!(lights.len(), 1, "{lights:?}");
+    assert_eq!(lights[0]["kind"], "directional");
+    assert_eq!(lights[0]["size"], 1.5);
+    for (light, needle) in [
+        ("spot@1,2,3@1,1,1", "unknown kind"),
+        ("point@1,2@1,1,1", "three values"),
+        ("area@0,1,-2@1,1,1", "number of @ groups"),
+        ("directional@0,-1,0@1,nan,1", "finite"),
+    ] {
+        let out = parallax()
+            .current_dir(dir.path())
+            .args([
+                "composite",
+                "--quiet",
+                "--left",
+                "room/im0.png",
+                "--right",
+                "room/im1.png",
+                "--calib",
+                "room/calib.txt",
+                "--insert",
+                "box@96,110",
+                "--light",
+                light,
+                "--out",
+                "bad.png",
+            ])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{light}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains(needle) && stderr.contains("--light"),
+            "{light}: {stderr}"
+        );
+    }
 }
 
 #[test]

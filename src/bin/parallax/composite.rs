@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use glam::{Mat4, Vec2};
 use parallax::artefact::{builtin_glb, BUILTIN_ARTEFACTS};
 use parallax::image::{Image, Raster};
+use parallax::light::{Light, LightKind};
 use parallax::render::{Composite, RenderOptions, ShadingMode, ShadowMode};
 use parallax::scene::Scene;
 use parallax::stereo;
@@ -27,6 +28,13 @@ pub struct Args {
     /// largest side SIZE_M metres (default 0.2), turned YAW_DEG about up. Repeatable.
     #[arg(long, value_name = "WHAT@X,Y[,SIZE_M[,YAW_DEG]]")]
     insert: Vec<String>,
+    /// A light replacing the estimate (repeatable; camera frame: x right, y up, the camera looks
+    /// along −z; metres; linear RGB relative to the photo's white):
+    /// `directional@DX,DY,DZ@R,G,B[@SIZE_DEG]` (travel direction, irradiance),
+    /// `point@X,Y,Z@R,G,B[@SIZE_M]` (position, intensity per steradian),
+    /// `area@X,Y,Z@DX,DY,DZ@R,G,B[@SIZE_M]` (position, facing direction, intensity).
+    #[arg(long, value_name = "KIND@…")]
+    light: Vec<String>,
     /// Shading: pbr (glTF metallic-roughness) or thesis (modified Blinn-Phong).
     #[arg(long, default_value = "pbr")]
     shading: String,
@@ -84,6 +92,62 @@ fn parse_insert(text: &str) -> Result<Insert> {
     })
 }
 
+/// One `--light` value, parsed.
+fn parse_light(text: &str) -> Result<Light> {
+    let bad = |why: &str| {
+        Error::invalid(format!(
+            "--light {text:?}: {why}; expected directional@DX,DY,DZ@R,G,B[@SIZE_DEG], \
+             point@X,Y,Z@R,G,B[@SIZE_M] or area@X,Y,Z@DX,DY,DZ@R,G,B[@SIZE_M]"
+        ))
+    };
+    let mut parts = text.split('@');
+    let kind = parts.next().unwrap_or_default();
+    let groups = parts
+        .map(|g| {
+            g.split(',')
+                .map(|v| v.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
+                .collect::<Option<Vec<f32>>>()
+                .ok_or_else(|| bad("a value is not a finite number"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let triple = |g: &Vec<f32>| -> Result<[f32; 3]> {
+        <[f32; 3]>::try_from(g.as_slice()).map_err(|_| bad("a vector needs three values"))
+    };
+    let scalar = |g: Option<&Vec<f32>>| -> Result<f32> {
+        match g.map(|g| g.as_slice()) {
+            None => Ok(0.0),
+            Some([v]) => Ok(*v),
+            Some(_) => Err(bad("the size is one value")),
+        }
+    };
+    let light = match (kind, groups.len()) {
+        ("directional", 2 | 3) => Light::directional(
+            triple(&groups[0])?,
+            scalar(groups.get(2))?,
+            triple(&groups[1])?,
+        ),
+        ("point", 2 | 3) => Light {
+            kind: LightKind::Point,
+            position: triple(&groups[0])?,
+            direction: [0.0, -1.0, 0.0],
+            size: scalar(groups.get(2))?,
+            intensity: triple(&groups[1])?,
+            confidence: 1.0,
+        },
+        ("area", 3 | 4) => Light {
+            kind: LightKind::Area,
+            position: triple(&groups[0])?,
+            direction: triple(&groups[1])?,
+            size: scalar(groups.get(3))?,
+            intensity: triple(&groups[2])?,
+            confidence: 1.0,
+        },
+        ("directional" | "point" | "area", _) => return Err(bad("wrong number of @ groups")),
+        _ => return Err(bad("unknown kind")),
+    };
+    Ok(light)
+}
+
 fn render_options(args: &Args) -> Result<RenderOptions> {
     let shading = match args.shading.as_str() {
         "pbr" => ShadingMode::Pbr,
@@ -127,9 +191,20 @@ pub fn run(args: Args) -> Result<()> {
         .iter()
         .map(|t| parse_insert(t))
         .collect::<Result<Vec<_>>>()?;
+    let lights = args
+        .light
+        .iter()
+        .map(|t| parse_light(t))
+        .collect::<Result<Vec<_>>>()?;
     let mut trace = Trace::new();
     let loaded = args.input.load(&mut trace)?;
     let mut scene = loaded.scene;
+    if !lights.is_empty() {
+        scene.set_lights(lights).map_err(|e| match e {
+            Error::InvalidArgument(m) => Error::invalid(format!("--light: {m}")),
+            other => other,
+        })?;
+    }
     let spinner = args.common.spinner("rendering the composite");
     for insert in &inserts {
         let id = if BUILTIN_ARTEFACTS.contains(&insert.what.as_str()) {
