@@ -48,8 +48,7 @@ pub struct plx_unity_interfaces {
     /// `GetInterfaceSplit(high, low)`: `GetInterface` with the GUID in two arguments.
     pub GetInterfaceSplit: Option<unsafe extern "C" fn(high: u64, low: u64) -> *mut c_void>,
     /// `RegisterInterfaceSplit(high, low, ptr)`.
-    pub RegisterInterfaceSplit:
-        Option<unsafe extern "C" fn(high: u64, low: u64, ptr: *mut c_void)>,
+    pub RegisterInterfaceSplit: Option<unsafe extern "C" fn(high: u64, low: u64, ptr: *mut c_void)>,
 }
 
 /// Unity's `UnityRenderingEvent`: the callback `GetRenderEventFunc` returns, run by Unity on its
@@ -158,7 +157,10 @@ unsafe fn run_event(event_id: i32) -> (Status, String) {
         );
     };
     let scene = target.scene as *mut plx_scene;
-    let mask = target.mask.as_ref().map_or(std::ptr::null(), |m| m as *const _);
+    let mask = target
+        .mask
+        .as_ref()
+        .map_or(std::ptr::null(), |m| m as *const _);
     let status = plx_scene_render(scene, &target.options, &target.out, mask);
     let message = if status == Status::Ok {
         String::new()
