@@ -54,6 +54,12 @@ int main() {
     parallax::Image env = parallax::Image::allocate(8, 4, PLX_PIXEL_FORMAT_RGB8);
     std::memset(env.pixels.data(), 128, env.pixels.size());
     scene.set_environment_equirect(env.view());
+    // The cube of a constant map is that constant on every face.
+    const parallax::Image face = scene.environment_cube_face(2, PLX_PIXEL_FORMAT_RGBA8);
+    EXPECT(face.width == scene.environment_cube_size() && face.height == face.width);
+    EXPECT(face.at(0, 0)[0] >= 126 && face.at(0, 0)[0] <= 130 && face.at(0, 0)[3] == 255);
+    EXPECT(scene.environment_cube_face(5).format == PLX_PIXEL_FORMAT_RGBA_F16);
+    EXPECT(status_of([&] { scene.environment_cube_face(6); }) == PLX_STATUS_INVALID_ARGUMENT);
     scene.reset_environment();
     parallax::Image square = parallax::Image::allocate(4, 4, PLX_PIXEL_FORMAT_RGB8);
     EXPECT(status_of([&] { scene.set_environment_equirect(square.view()); }) ==
