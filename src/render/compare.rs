@@ -16,7 +16,7 @@ use crate::artefact::{Artefact, ArtefactSet, Material};
 use crate::camera::{Camera, StereoCalibration};
 use crate::error::{Error, Result};
 use crate::image::Raster;
-use crate::light::{Light, LightKind, Sh9};
+use crate::light::{sh9_from_cube, CubeLevel, Light, LightKind, Sh9};
 use crate::mesh::{MeshOptions, SceneMesh};
 use crate::reference::{self, LightRecord, Object, SampleBudget, Shape};
 
@@ -155,7 +155,8 @@ pub struct ReferenceTruth {
     pub depth: Raster<f32>,
     /// True lights, left camera frame.
     pub lights: Vec<Light>,
-    /// SH9 of the true environment.
+    /// SH9 of the true ambient at the first inserted object: path-traced radiance arriving 10 cm
+    /// above its base from everything but the emitters (the renderer adds those as lights).
     pub sh9: Sh9,
     /// The ground-truth composite, linear RGB.
     pub composite: Raster<[f32; 3]>,
@@ -391,11 +392,29 @@ pub fn render_truth(setup: &ComparisonSetup, stereo_views: bool) -> Result<Refer
         .iter()
         .map(|o| artefact_for(o, world_to_camera))
         .collect::<Result<Vec<_>>>()?;
+    // The renderer adds the lights itself and has no interreflections: its true ambient is the
+    // radiance arriving at the objects from everything but the emitters (walls, floor, sky).
+    let sh9 = match setup.inserts.first() {
+        Some((_, base, _)) => {
+            let at = world_to_camera.transform_point3(Vec3::from(*base) + Vec3::Y * 0.1);
+            let probe = reference::radiance_probe(
+                &scene,
+                &reference::RenderOptions {
+                    samples: SampleBudget::PerPixel(16),
+                    ..options
+                },
+                at.to_array(),
+                16,
+            )?;
+            sh9_from_cube(&without_emitters(probe, &images.lights), f32::MAX, 0.0)
+        }
+        None => sh9_from_equirect(&images.environment),
+    };
     Ok(ReferenceTruth {
         photo: truth.background,
         right: stereo_views.then_some(images.right),
         calibration: images.calibration,
-        sh9: sh9_from_equirect(&images.environment),
+        sh9,
         depth: images.depth,
         lights,
         composite: truth.composite,
@@ -405,6 +424,27 @@ pub fn render_truth(setup: &ComparisonSetup, stereo_views: bool) -> Result<Refer
         reference_seconds: truth.render_seconds,
         samples_per_pixel: truth.samples_per_pixel,
     })
+}
+
+/// The probe with the texels that see an emitter directly set to black: those brighter than half
+/// the dimmest area or sphere light's radiance (luminance). A sun or other directional light is
+/// never hit by a probe ray, and nothing in the built-in scenes but an emitter comes close to that
+/// brightness.
+fn without_emitters(mut probe: CubeLevel, lights: &[LightRecord]) -> CubeLevel {
+    let luminance = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let dimmest = lights
+        .iter()
+        .filter_map(|l| l.radiance)
+        .map(luminance)
+        .fold(f32::INFINITY, f32::min);
+    if dimmest.is_finite() {
+        for t in &mut probe.texels {
+            if luminance(*t) > 0.5 * dimmest {
+                *t = [0.0; 3];
+            }
+        }
+    }
+    probe
 }
 
 /// Renders `truth`'s objects into its photo with TRUE depth (mesh from it), lights and SH9, once
@@ -418,12 +458,51 @@ pub fn compare_true_inputs(
     truth: &ReferenceTruth,
     configs: &[RenderOptions],
 ) -> Result<Vec<ComparisonRow>> {
+    with_true_inputs(truth, |inputs| {
+        if let Some(first) = configs.first() {
+            renderer.render(inputs, first)?;
+        }
+        let mut rows = Vec::new();
+        for config in configs {
+            let start = Instant::now();
+            let out: Composite = renderer.render(inputs, config)?;
+            let render_ms = start.elapsed().as_secs_f64() * 1e3;
+            let e = truth.errors(&out.composite, false);
+            rows.push(ComparisonRow {
+                options: *config,
+                image: e.image,
+                artefact: e.artefact,
+                shadow: e.shadow,
+                affected: e.affected,
+                render_ms,
+            });
+        }
+        Ok(rows)
+    })
+}
+
+/// The composite of `truth`'s objects rendered with TRUE depth, lights and SH9 and `options`.
+///
+/// # Errors
+/// As [`compare_true_inputs`].
+pub fn render_true_inputs(
+    renderer: &Renderer,
+    truth: &ReferenceTruth,
+    options: &RenderOptions,
+) -> Result<Composite> {
+    with_true_inputs(truth, |inputs| renderer.render(inputs, options))
+}
+
+fn with_true_inputs<T>(
+    truth: &ReferenceTruth,
+    f: impl FnOnce(&RenderInputs) -> Result<T>,
+) -> Result<T> {
     let (w, h) = truth.size();
     let camera =
         Camera::from_calibration(&truth.calibration, w, h)?.with_clip_from_depth(&truth.depth)?;
     let mesh = SceneMesh::from_depth(&truth.depth, &camera, &MeshOptions::default())?;
     let set = truth.artefact_set()?;
-    let inputs = RenderInputs {
+    f(&RenderInputs {
         photo: &truth.photo,
         camera: &camera,
         scene_mesh: Some(&mesh),
@@ -432,26 +511,7 @@ pub fn compare_true_inputs(
         sh9: &truth.sh9,
         specular: None,
         photo_shadow: None,
-    };
-    if let Some(first) = configs.first() {
-        renderer.render(&inputs, first)?;
-    }
-    let mut rows = Vec::new();
-    for config in configs {
-        let start = Instant::now();
-        let out: Composite = renderer.render(&inputs, config)?;
-        let render_ms = start.elapsed().as_secs_f64() * 1e3;
-        let e = truth.errors(&out.composite, false);
-        rows.push(ComparisonRow {
-            options: *config,
-            image: e.image,
-            artefact: e.artefact,
-            shadow: e.shadow,
-            affected: e.affected,
-            render_ms,
-        });
-    }
-    Ok(rows)
+    })
 }
 
 /// Renders the setup's scene with the path tracer (photo, TRUE depth and lights, ground-truth

@@ -15,7 +15,8 @@
 //! (linear light) and PSNR over the whole image, the objects, and their shadows, and the render
 //! time, next to the path tracer's time for the same composite. Writes `composite.md`,
 //! `composite.json`, `composite_error_vs_time.png` and, per scene, the truth and both
-//! composites with the default options.
+//! composites with the first configuration (`NAME_truth.png`, `NAME_true_inputs.png`,
+//! `NAME_estimated.png`).
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -25,7 +26,8 @@ use std::time::Instant;
 use parallax::context::{Context, ContextOptions};
 use parallax::image::{Image, Raster};
 use parallax::render::compare::{
-    compare_true_inputs, render_truth, ComparisonSetup, ReferenceTruth, RegionErrors,
+    compare_true_inputs, render_true_inputs, render_truth, ComparisonSetup, ReferenceTruth,
+    RegionErrors,
 };
 use parallax::render::{RenderOptions, ShadingMode, ShadowMode};
 use parallax::scene::Scene;
@@ -267,6 +269,10 @@ pub fn run(args: CompositeArgs) -> Result<()> {
         }
         let image = |stem: &str| args.out.join(format!("{name}_{stem}.png"));
         Image::from_linear_rgb(&truth.composite).save_png(image("truth"))?;
+        if let Some(config) = configs.first() {
+            let ours = render_true_inputs(&renderer, &truth, config)?;
+            Image::from_linear_rgb(&ours.composite).save_png(image("true_inputs"))?;
+        }
         Image::from_linear_rgb(&estimated.first).save_png(image("estimated"))?;
         report.scenes.push(SceneSummary {
             scene: name.clone(),
