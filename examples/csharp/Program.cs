@@ -1,0 +1,161 @@
+// A C# host of Parallax (bindings/csharp): loads a stereo pair, reconstructs it, stands a glTF
+// model on the scene at a chosen pixel, renders the composite, and checks that failures arrive
+// as ParallaxException with their status. Prints key=value lines and writes raw images (read by
+// tests/csharp.rs, which also compares the struct layouts printed here with the Rust ones).
+//
+//   mono parallax_example.exe LEFT.png RIGHT.png MODEL.glb FOCAL_PX BASELINE_M X Y OUT_DIR
+//
+// OUT_DIR receives composite.rgba and photo.rgba (RGBA8, rows top first) and mask.f32 (coverage).
+using System;
+using System.Globalization;
+using System.IO;
+using System.Runtime.InteropServices;
+using Parallax;
+
+static class Program
+{
+    static readonly CultureInfo C = CultureInfo.InvariantCulture;
+
+    static void Print(string key, object value)
+    {
+        string text = value is IFormattable ? ((IFormattable)value).ToString(null, C) : value.ToString();
+        Console.WriteLine(key + "=" + text);
+    }
+
+    static string Vec(float[] v, int start, int n)
+    {
+        string[] parts = new string[n];
+        for (int i = 0; i < n; i++)
+            parts[i] = v[start + i].ToString("R", C);
+        return string.Join(",", parts);
+    }
+
+    static int Main(string[] args)
+    {
+        if (args.Length != 8)
+        {
+            Console.Error.WriteLine("usage: parallax_example LEFT RIGHT MODEL.glb FOCAL_PX BASELINE_M X Y OUT_DIR");
+            return 2;
+        }
+        // The marshalled size of every struct, for the layout check against the Rust types.
+        foreach (Type t in typeof(PlxLight).Assembly.GetTypes())
+            if (t.IsValueType && !t.IsEnum && t.Name.StartsWith("Plx") && t.IsLayoutSequential)
+                Print("layout." + t.Name, Marshal.SizeOf(t));
+        Print("version", Library.Version);
+        Print("status_str_io", Library.StatusString(PlxStatus.Io));
+
+        int warnings = 0;
+        Library.SetLogCallback((level, message) => { if (level == PlxLogLevel.Warn) warnings++; }, PlxLogLevel.Warn);
+        try
+        {
+            using (Context context = new Context())
+            using (Scene scene = new Scene(context))
+            {
+                scene.LoadStereoPair(args[0], args[1]);
+                double focal = double.Parse(args[3], C), baseline = double.Parse(args[4], C);
+                scene.SetCalibration(focal, baseline);
+                int w, h;
+                scene.PhotoSize(out w, out h);
+                Print("size", w + "x" + h);
+                Print("disparity_centre_px", scene.Disparity()[w / 2, h / 2]);
+                Print("depth_centre_m", scene.Depth()[w / 2, h / 2]);
+                Print("mesh_triangles", scene.Mesh().TriangleCount);
+                Print("surfaces", scene.Surfaces().Length);
+
+                int stages = 0;
+                scene.SetProgressCallback((stage, fraction) => { if (fraction == 1) stages++; return true; });
+
+                float x = float.Parse(args[5], C), y = float.Parse(args[6], C);
+                PlxHit hit = scene.Pick(x, y);
+                Print("hit", hit.Hit);
+                Print("point", Vec(hit.Point, 0, 3));
+                uint id = scene.AddArtefactPath(args[2]);
+                float[] m = scene.PlaceArtefact(id, x, y, 0.3f, 30);
+                Print("artefact_translation", Vec(m, 12, 3));
+                Bounds b = scene.ArtefactBounds(id);
+                Print("artefact_world_min", Vec(b.WorldMin, 0, 3));
+                Print("artefact_world_max", Vec(b.WorldMax, 0, 3));
+                Print("artefact_warnings", scene.ArtefactWarnings(id).Length);
+
+                PlxLight[] lights = scene.Lights();
+                Print("lights", lights.Length);
+                MainLight main = scene.MainLight();
+                Print("main_light_direction", Vec(main.Direction, 0, 3));
+                Print("sh9_0", Vec(scene.Sh9(), 0, 3));
+
+                // The composite, RGBA8 rows top first, and the artefacts' coverage.
+                byte[] composite = new byte[w * h * 4];
+                float[] mask = new float[w * h];
+                scene.Render(composite, w, h, PlxPixelFormat.Rgba8, PlxRenderOptions.CreateDefault(), mask);
+                File.WriteAllBytes(Path.Combine(args[7], "composite.rgba"), composite);
+                byte[] maskBytes = new byte[mask.Length * 4];
+                Buffer.BlockCopy(mask, 0, maskBytes, 0, maskBytes.Length);
+                File.WriteAllBytes(Path.Combine(args[7], "mask.f32"), maskBytes);
+                byte[] photo = new byte[w * h * 4];
+                scene.Photo(photo, w, h, PlxPixelFormat.Rgba8);
+                File.WriteAllBytes(Path.Combine(args[7], "photo.rgba"), photo);
+                Print("report_has_render", scene.Report().Contains("\"render\"") ? 1 : 0);
+                Print("progress_stages", stages);
+
+                // Another composition of the same reconstruction: without the box it is the photo.
+                using (Scene variant = scene.Clone())
+                {
+                    variant.RemoveArtefact(id);
+                    byte[] plain = variant.Render();
+                    bool same = plain.Length == photo.Length;
+                    for (int i = 0; same && i < plain.Length; i++)
+                        same = plain[i] == photo[i];
+                    Print("clone_without_box_is_photo", same ? 1 : 0);
+                }
+
+                // Host lights replace the estimate and come back as given.
+                scene.SetLights(new PlxLight[] { PlxLight.Directional(new float[] { 0, -1, 0 }, 5, new float[] { 2, 2, 2 }) });
+                PlxLight[] mine = scene.Lights();
+                Print("host_lights", mine.Length + ":" + Vec(mine[0].Direction, 0, 3) + ":" + mine[0].Size.ToString("R", C));
+                scene.ResetLights();
+
+                // Failures arrive as ParallaxException with the status and the library's message.
+                Expect("error_missing_file", () => scene.LoadStereoPair(Path.Combine(args[7], "missing.png"), args[1]));
+                Expect("error_unknown_artefact", () => scene.RemoveArtefact(9999));
+                Expect("error_bad_size", () => scene.Render(new byte[4], 1, 1, PlxPixelFormat.Rgba8));
+                scene.SetProgressCallback((stage, fraction) => false);
+                scene.SetStereoOptions(PlxStereoOptions.CreateDefault()); // new options: stereo reruns
+                Expect("error_cancelled", () => scene.Disparity());
+                scene.SetProgressCallback((stage, fraction) => { throw new InvalidOperationException("host bug"); });
+                Expect("error_callback_threw", () => scene.Disparity());
+                scene.SetProgressCallback(null);
+                Print("disparity_after_cancel", scene.Disparity()[w / 2, h / 2]);
+            }
+            Expect("error_no_pair", () =>
+            {
+                using (Context c = new Context())
+                using (Scene s = new Scene(c))
+                    s.Render(new byte[4], 1, 1);
+            });
+        }
+        catch (ParallaxException e)
+        {
+            Console.Error.WriteLine("parallax error " + e.Status + ": " + e.Message);
+            return 1;
+        }
+        finally
+        {
+            Library.SetLogCallback(null);
+        }
+        Print("log_warnings", warnings);
+        return 0;
+    }
+
+    static void Expect(string key, Action action)
+    {
+        try
+        {
+            action();
+            Print(key, "none");
+        }
+        catch (ParallaxException e)
+        {
+            Print(key, e.Status + ": " + e.Message.Replace('\n', ' '));
+        }
+    }
+}
