@@ -71,7 +71,7 @@ static class Program
                 Print("point", Vec(hit.Point, 0, 3));
                 uint id = scene.AddArtefactPath(args[2]);
                 float[] m = scene.PlaceArtefact(id, x, y, 0.3f, 30);
-                Print("artefact_translation", Vec(m, 12, 3));
+                Print("artefact_transform", Vec(m, 0, 16));
                 Bounds b = scene.ArtefactBounds(id);
                 Print("artefact_world_min", Vec(b.WorldMin, 0, 3));
                 Print("artefact_world_max", Vec(b.WorldMax, 0, 3));
@@ -87,6 +87,7 @@ static class Program
                 byte[] composite = new byte[w * h * 4];
                 float[] mask = new float[w * h];
                 scene.Render(composite, w, h, PlxPixelFormat.Rgba8, PlxRenderOptions.CreateDefault(), mask);
+                Print("report_has_render", scene.Report().Contains("\"render\"") ? 1 : 0);
                 File.WriteAllBytes(Path.Combine(args[7], "composite.rgba"), composite);
                 byte[] maskBytes = new byte[mask.Length * 4];
                 Buffer.BlockCopy(mask, 0, maskBytes, 0, maskBytes.Length);
@@ -94,7 +95,6 @@ static class Program
                 byte[] photo = new byte[w * h * 4];
                 scene.Photo(photo, w, h, PlxPixelFormat.Rgba8);
                 File.WriteAllBytes(Path.Combine(args[7], "photo.rgba"), photo);
-                Print("report_has_render", scene.Report().Contains("\"render\"") ? 1 : 0);
                 Print("progress_stages", stages);
 
                 // Another composition of the same reconstruction: without the box it is the photo.

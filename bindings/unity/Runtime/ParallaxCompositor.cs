@@ -56,6 +56,16 @@ namespace Parallax
         Context context;
         Scene scene;
         readonly List<uint> ids = new List<uint>();
+        Texture2D sentLeft, sentRight;
+        float sentFocal, sentBaseline;
+
+        /// <summary>Call after changing the pixels of <see cref="left"/> or <see cref="right"/> in place:
+        /// Compose sends the pair again (and Parallax reconstructs it) only when the textures were
+        /// replaced or this was called; otherwise it reuses depth, mesh and lights.</summary>
+        public void MarkPhotoChanged()
+        {
+            sentLeft = sentRight = null;
+        }
 
         void Start()
         {
@@ -103,10 +113,21 @@ namespace Parallax
                     context = new Context();
                 if (scene == null)
                     scene = new Scene(context);
-                scene.SetStereoPair(TopDownRgba(left.GetPixels32(), w, h), TopDownRgba(right.GetPixels32(), w, h),
-                                    w, h, PlxPixelFormat.Rgba8);
-                if (focalPx > 0)
+                if (left != sentLeft || right != sentRight)
+                {
+                    sentLeft = sentRight = null;
+                    scene.SetStereoPair(TopDownRgba(left.GetPixels32(), w, h), TopDownRgba(right.GetPixels32(), w, h),
+                                        w, h, PlxPixelFormat.Rgba8);
+                    sentLeft = left;
+                    sentRight = right;
+                    sentFocal = 0;
+                }
+                if (focalPx > 0 && (focalPx != sentFocal || baselineM != sentBaseline))
+                {
                     scene.SetCalibration(focalPx, baselineM);
+                    sentFocal = focalPx;
+                    sentBaseline = baselineM;
+                }
                 foreach (uint id in ids)
                     scene.RemoveArtefact(id);
                 ids.Clear();
@@ -131,11 +152,10 @@ namespace Parallax
             }
         }
 
+        // Warnings only: a failed call's error arrives as its ParallaxException, logged by Compose.
         static void Forward(PlxLogLevel level, string message)
         {
-            if (level == PlxLogLevel.Error)
-                Debug.LogError("Parallax: " + message);
-            else
+            if (level == PlxLogLevel.Warn)
                 Debug.LogWarning("Parallax: " + message);
         }
 
