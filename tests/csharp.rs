@@ -143,6 +143,17 @@ fn words(text: &str) -> String {
 /// `const struct plx_scene *scene` → Param { ty: plx_scene, depth: 1, name: scene }.
 fn c_decl(decl: &str) -> Param {
     let decl = words(decl);
+    // A function-pointer field `RET (*name)(PARAMS)`: a pointer (IntPtr in C#).
+    if let Some(star) = decl.find("(*") {
+        let end = star + decl[star..].find(')').expect("function pointer name");
+        return Param {
+            ty: "fn".into(),
+            depth: 1,
+            modifier: String::new(),
+            name: decl[star + 2..end].trim().to_string(),
+            array: None,
+        };
+    }
     let mut array = None;
     let mut decl = decl.as_str();
     if let Some(i) = decl.find('[') {
@@ -179,11 +190,11 @@ fn parse_header(text: &str) -> Api {
             let head = &decl[..open];
             let close = matching(&decl, open);
             let body = &decl[open + 1..close - 1];
-            let name = head
-                .split_whitespace()
-                .find(|w| w.starts_with("plx_"))
-                .unwrap_or_else(|| panic!("unnamed block {head:?}"))
-                .to_string();
+            // Only the C API's own types (not, say, a host's interface struct).
+            let Some(name) = head.split_whitespace().find(|w| w.starts_with("plx_")) else {
+                continue;
+            };
+            let name = name.to_string();
             if head.contains("enum") {
                 let mut items = Vec::new();
                 for item in split_top(body, ',') {
@@ -200,6 +211,9 @@ fn parse_header(text: &str) -> Api {
             let star = decl.find("(*").unwrap();
             let name_end = star + decl[star..].find(')').unwrap();
             let name = decl[star + 2..name_end].trim().to_string();
+            if !name.starts_with("plx_") {
+                continue;
+            }
             let ret = c_decl(decl["typedef".len()..star].trim());
             let params_open = name_end + decl[name_end..].find('(').unwrap();
             let params = &decl[params_open + 1..matching(&decl, params_open) - 1];
@@ -427,7 +441,7 @@ fn pascal(snake: &str) -> String {
         .map(|w| {
             let mut c = w.chars();
             match c.next() {
-                Some(f) => f.to_uppercase().collect::<String>() + &c.as_str().to_lowercase(),
+                Some(f) => f.to_uppercase().collect::<String>() + c.as_str(),
                 None => String::new(),
             }
         })
@@ -624,7 +638,7 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
             .iter()
             .map(|(k, v)| {
                 let short = k.strip_prefix(&prefix).unwrap_or_else(|| panic!("{k} in {name}"));
-                (pascal(short), *v)
+                (pascal(&short.to_lowercase()), *v)
             })
             .collect();
         match cs.enums.get(&pascal(name)) {
@@ -866,6 +880,7 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
         ],
     );
     let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    println!("{stdout}");
     let v = values(&out.stdout);
     check_layouts(&v);
     assert_eq!(v["version"], env!("CARGO_PKG_VERSION"));

@@ -69,6 +69,8 @@ static class Program
                 PlxHit hit = scene.Pick(x, y);
                 Print("hit", hit.Hit);
                 Print("point", Vec(hit.Point, 0, 3));
+                Print("normal", Vec(hit.Normal, 0, 3));
+                Print("up", Vec(scene.Up(), 0, 3));
                 uint id = scene.AddArtefactPath(args[2]);
                 float[] m = scene.PlaceArtefact(id, x, y, 0.3f, 30);
                 Print("artefact_transform", Vec(m, 0, 16));
