@@ -157,7 +157,12 @@ fn c_decl(decl: &str) -> Param {
     let mut array = None;
     let mut decl = decl.as_str();
     if let Some(i) = decl.find('[') {
-        array = Some(decl[i + 1..decl.len() - 1].trim().parse().expect("array length"));
+        array = Some(
+            decl[i + 1..decl.len() - 1]
+                .trim()
+                .parse()
+                .expect("array length"),
+        );
         decl = &decl[..i];
     }
     let depth = decl.matches('*').count();
@@ -318,7 +323,9 @@ fn parse_csharp(text: &str) -> Api {
     let mut from = 0;
     while let Some(i) = text[from..].find("static extern ") {
         let start = from + i;
-        let attr_at = text[..start].rfind("[DllImport(").expect("extern without DllImport");
+        let attr_at = text[..start]
+            .rfind("[DllImport(")
+            .expect("extern without DllImport");
         let attr = &text[attr_at..start];
         assert!(
             attr.contains("CallingConvention.Cdecl") && attr.contains("Library"),
@@ -326,7 +333,10 @@ fn parse_csharp(text: &str) -> Api {
         );
         let decl = words(&text[start + "static extern ".len()..]);
         let open = decl.find('(').unwrap();
-        let (ret, name) = decl[..open].trim().split_once(' ').expect("return type and name");
+        let (ret, name) = decl[..open]
+            .trim()
+            .split_once(' ')
+            .expect("return type and name");
         let params = &decl[open + 1..matching(&decl, open) - 1];
         let ret = Param {
             ty: ret.to_string(),
@@ -500,10 +510,7 @@ fn compatible(c: &Param, cs: &Param, api: &Api) -> Result<(), String> {
                         None => false,
                     })
         }
-        2 => {
-            cs.modifier == "out"
-                && (cs.ty == "IntPtr" || handle(&c.ty) == Some(cs.ty.as_str()))
-        }
+        2 => cs.modifier == "out" && (cs.ty == "IntPtr" || handle(&c.ty) == Some(cs.ty.as_str())),
         _ => false,
     };
     if ok {
@@ -588,7 +595,10 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
                 continue;
             }
             if !compatible_return(c_ret, cs_ret) {
-                problems.push(format!("{name}: returns {c_ret:?} in C, {} in C#", cs_ret.ty));
+                problems.push(format!(
+                    "{name}: returns {c_ret:?} in C, {} in C#",
+                    cs_ret.ty
+                ));
             }
             for (a, b) in c_params.iter().zip(cs_params) {
                 if let Err(e) = compatible(a, b, &c) {
@@ -599,7 +609,9 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
     }
     for name in cs.functions.keys() {
         if !c.functions.contains_key(name) {
-            problems.push(format!("{name}: imported in C# but not in include/parallax.h"));
+            problems.push(format!(
+                "{name}: imported in C# but not in include/parallax.h"
+            ));
         }
     }
     for (name, fields) in &c.structs {
@@ -637,7 +649,9 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
         let expected: Vec<(String, i64)> = items
             .iter()
             .map(|(k, v)| {
-                let short = k.strip_prefix(&prefix).unwrap_or_else(|| panic!("{k} in {name}"));
+                let short = k
+                    .strip_prefix(&prefix)
+                    .unwrap_or_else(|| panic!("{k} in {name}"));
                 (pascal(&short.to_lowercase()), *v)
             })
             .collect();
@@ -827,7 +841,10 @@ fn check_layouts(v: &HashMap<String, String>) {
     use parallax::ffi;
     use std::mem::size_of;
     let rust: HashMap<&str, usize> = [
-        ("PlxContextOptions", size_of::<ffi::context::plx_context_options>()),
+        (
+            "PlxContextOptions",
+            size_of::<ffi::context::plx_context_options>(),
+        ),
         ("PlxImageOut", size_of::<ffi::image_io::plx_image_out>()),
         ("PlxLight", size_of::<ffi::light::plx_light>()),
         ("PlxImage", size_of::<ffi::image::plx_image>()),
@@ -837,9 +854,15 @@ fn check_layouts(v: &HashMap<String, String>) {
         ("PlxMeshView", size_of::<ffi::mesh::plx_mesh_view>()),
         ("PlxSurface", size_of::<ffi::query::plx_surface>()),
         ("PlxHit", size_of::<ffi::query::plx_hit>()),
-        ("PlxRenderOptions", size_of::<ffi::render::plx_render_options>()),
+        (
+            "PlxRenderOptions",
+            size_of::<ffi::render::plx_render_options>(),
+        ),
         ("PlxCalibration", size_of::<ffi::scene::plx_calibration>()),
-        ("PlxStereoOptions", size_of::<ffi::stereo::plx_stereo_options>()),
+        (
+            "PlxStereoOptions",
+            size_of::<ffi::stereo::plx_stereo_options>(),
+        ),
     ]
     .into_iter()
     .collect();
@@ -891,9 +914,15 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
     // in tests/cpp.rs).
     let d = number(&v, "disparity_centre_px");
     let z = number(&v, "depth_centre_m");
-    assert!((d - truth.disparity_centre_px as f64).abs() < 1.0, "disparity {d}");
+    assert!(
+        (d - truth.disparity_centre_px as f64).abs() < 1.0,
+        "disparity {d}"
+    );
     let z_true = truth.depth_centre_m as f64;
-    assert!((z - z_true).abs() < 0.4 * z_true, "depth {z} m, truth {z_true} m");
+    assert!(
+        (z - z_true).abs() < 0.4 * z_true,
+        "depth {z} m, truth {z_true} m"
+    );
     assert!(number(&v, "mesh_triangles") > 1000.0, "{stdout}");
     assert_eq!(v["hit"], "1");
     // The box stands on the picked floor point: its bottom centre is the placement's translation
@@ -909,7 +938,10 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
     assert!(dist(t, hit) < 0.01, "translation {t:?}, picked {hit:?}");
     let height = dist([m[4], m[5], m[6]], [0.0; 3]);
     assert!((height - 0.3).abs() < 1e-3, "box {height} m tall");
-    let (lo, hi) = (vec3(&v, "artefact_world_min"), vec3(&v, "artefact_world_max"));
+    let (lo, hi) = (
+        vec3(&v, "artefact_world_min"),
+        vec3(&v, "artefact_world_max"),
+    );
     assert!(
         (0..3).all(|i| lo[i] <= t[i] + 1e-4 && t[i] <= hi[i] + 1e-4),
         "world box {lo:?}..{hi:?} misses the base {t:?}"
@@ -932,7 +964,10 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
         .chunks_exact(4)
         .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
         .collect();
-    assert_eq!((photo.len(), composite.len(), mask.len()), (w * h * 4, w * h * 4, w * h));
+    assert_eq!(
+        (photo.len(), composite.len(), mask.len()),
+        (w * h * 4, w * h * 4, w * h)
+    );
     for (p, l) in photo.chunks_exact(4).zip(left.as_bytes().chunks_exact(bpp)) {
         assert_eq!((&p[..3], p[3]), (&l[..3], 255));
     }
@@ -965,7 +1000,10 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
     );
     // Far from the box (the upper third of the image: walls and ceiling) the photo is unchanged.
     let far: Vec<usize> = (0..w * h / 3).collect();
-    let unchanged = far.iter().filter(|&&i| diff(i) <= 2.0 && mask[i] == 0.0).count();
+    let unchanged = far
+        .iter()
+        .filter(|&&i| diff(i) <= 2.0 && mask[i] == 0.0)
+        .count();
     assert!(
         unchanged * 100 >= far.len() * 99,
         "{unchanged} of {} far pixels unchanged",
@@ -979,9 +1017,15 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
         e.starts_with("Io: ") && e.contains(&*missing.to_string_lossy()),
         "{e}"
     );
-    assert!(v["error_unknown_artefact"].starts_with("InvalidArgument: "), "{stdout}");
+    assert!(
+        v["error_unknown_artefact"].starts_with("InvalidArgument: "),
+        "{stdout}"
+    );
     assert!(v["error_unknown_artefact"].contains("9999"), "{stdout}");
-    assert!(v["error_bad_size"].starts_with("SizeMismatch: "), "{stdout}");
+    assert!(
+        v["error_bad_size"].starts_with("SizeMismatch: "),
+        "{stdout}"
+    );
     assert!(v["error_cancelled"].starts_with("Cancelled: "), "{stdout}");
     assert!(
         v["error_callback_threw"].starts_with("Cancelled: the progress callback threw: host bug"),
@@ -989,7 +1033,10 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
     );
     assert!(v["error_no_pair"].starts_with("NotAvailable: "), "{stdout}");
     // After the cancelled calls the scene still answers.
-    assert!((number(&v, "disparity_after_cancel") - d).abs() < 1e-3, "{stdout}");
+    assert!(
+        (number(&v, "disparity_after_cancel") - d).abs() < 1e-3,
+        "{stdout}"
+    );
     // The loader's warning (generated normals) went through the log callback.
     assert!(number(&v, "log_warnings") >= 1.0, "{stdout}");
 }
@@ -1106,7 +1153,10 @@ fn unity_compositor_fills_the_output_texture_the_right_way_up() {
     assert_eq!(v["errors_logged"], "0", "{stderr}");
     assert_eq!(v["missing_model_composed"], "0");
     assert_eq!(v["errors_logged_after"], "1");
-    assert!(stderr.contains("Io: ") && stderr.contains("missing.glb"), "{stderr}");
+    assert!(
+        stderr.contains("Io: ") && stderr.contains("missing.glb"),
+        "{stderr}"
+    );
 
     // Unity's bottom-up rows, flipped back to the photo's top-down order.
     let bottom_up = std::fs::read(&out_file).unwrap();
