@@ -225,7 +225,7 @@ fn parse_header(text: &str) -> Api {
             api.callbacks.insert(name, (c_params(params), ret));
         } else if let Some(open) = decl.find('(') {
             let before = decl[..open].trim();
-            let Some(name) = before.rsplit(|c: char| c == ' ' || c == '*').next() else {
+            let Some(name) = before.rsplit([' ', '*']).next() else {
                 continue;
             };
             if !name.starts_with("plx_") {
