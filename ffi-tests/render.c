@@ -1,4 +1,4 @@
-/* plx_scene_render without artefacts (the photo itself, no GPU work) and its argument checks,
+/* plx_scene_photo_size, and plx_scene_render without artefacts (the photo itself, no GPU work) and its argument checks,
  * which all happen before any rendering. The GPU path is tested in Rust (scene::render). */
 #include "check.h"
 
@@ -17,6 +17,9 @@ int main(void) {
 
     /* No photo yet. */
     CHECK_STATUS(scene, plx_scene_render(scene, &opts, &out, NULL), PLX_STATUS_NOT_AVAILABLE);
+    uint32_t pw = 0, ph = 0;
+    CHECK_STATUS(scene, plx_scene_photo_size(scene, &pw, &ph), PLX_STATUS_NOT_AVAILABLE);
+    CHECK(pw == 0 && ph == 0);
 
     uint8_t left[W * H * 3], right[W * H * 3];
     for (int i = 0; i < W * H * 3; i++) {
@@ -26,6 +29,12 @@ int main(void) {
     plx_image l = {left, W, H, W * 3, PLX_PIXEL_FORMAT_RGB8};
     plx_image r = {right, W, H, W * 3, PLX_PIXEL_FORMAT_RGB8};
     CHECK_STATUS(scene, plx_scene_set_stereo_pair(scene, &l, &r), PLX_STATUS_OK);
+    /* The size every output must have. */
+    CHECK_STATUS(scene, plx_scene_photo_size(scene, &pw, &ph), PLX_STATUS_OK);
+    CHECK(pw == W && ph == H);
+    CHECK_STATUS(scene, plx_scene_photo_size(scene, NULL, &ph), PLX_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(scene, plx_scene_photo_size(scene, &pw, NULL), PLX_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(NULL, plx_scene_photo_size(NULL, &pw, &ph), PLX_STATUS_NULL_ARGUMENT);
 
     /* No artefact: the composite is the photo, byte for byte, and alpha is opaque. */
     memset(rgba, 0, sizeof rgba);

@@ -500,6 +500,37 @@ typedef struct plx_stereo_options {
   int32_t coarse_levels;
 } plx_stereo_options;
 
+#if defined(PLX_FEATURE_UNITY)
+// A Unity interface GUID (Unity's `UnityInterfaceGUID`: two 64-bit halves).
+typedef struct plx_unity_guid {
+  // `m_GUIDHigh`.
+  uint64_t high;
+  // `m_GUIDLow`.
+  uint64_t low;
+} plx_unity_guid;
+#endif
+
+#if defined(PLX_FEATURE_UNITY)
+// The layout of Unity's `IUnityInterfaces` (`IUnityInterface.h`): the table Unity passes to
+// `UnityPluginLoad`. Parallax keeps the pointer and calls none of its functions.
+typedef struct plx_unity_interfaces {
+  // `GetInterface(guid)`: the interface registered under `guid`, or NULL.
+  void *(*GetInterface)(struct plx_unity_guid guid);
+  // `RegisterInterface(guid, ptr)`.
+  void (*RegisterInterface)(struct plx_unity_guid guid, void *ptr);
+  // `GetInterfaceSplit(high, low)`: `GetInterface` with the GUID in two arguments.
+  void *(*GetInterfaceSplit)(uint64_t high, uint64_t low);
+  // `RegisterInterfaceSplit(high, low, ptr)`.
+  void (*RegisterInterfaceSplit)(uint64_t high, uint64_t low, void *ptr);
+} plx_unity_interfaces;
+#endif
+
+#if defined(PLX_FEATURE_UNITY)
+// Unity's `UnityRenderingEvent`: the callback `GetRenderEventFunc` returns, run by Unity on its
+// render thread with the event id given to `IssuePluginEvent`.
+typedef void (*plx_unity_rendering_event)(int32_t event_id);
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -652,6 +683,14 @@ void plx_context_free(struct plx_context *context);
 // # Safety
 // `scene` is a live scene; `out` points to a valid descriptor of writable memory.
 enum plx_status plx_scene_photo(struct plx_scene *scene, const struct plx_image_out *out);
+
+// The photo's size in pixels (the left view of the stereo pair) into `*width` and `*height`:
+// the size every image output of the scene (`plx_scene_photo`, `plx_scene_render`) must have.
+// Cheap: decodes nothing. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a stereo pair.
+//
+// # Safety
+// `scene` is a live scene; `width` and `height` are writable.
+enum plx_status plx_scene_photo_size(struct plx_scene *scene, uint32_t *width, uint32_t *height);
 
 // Reads the stereo pair from two image files (PNG, JPEG, OpenEXR, Radiance HDR; 8-bit files are
 // sRGB, float files linear) and sets it like `plx_scene_set_stereo_pair`. The size is checked
@@ -1062,6 +1101,81 @@ enum plx_status plx_scene_depth(struct plx_scene *scene, struct plx_float_view *
 // # Safety
 // `scene` is a live scene.
 enum plx_status plx_test_panic(struct plx_scene *scene);
+#endif
+
+#if defined(PLX_FEATURE_UNITY)
+// Called by Unity when it loads the plugin, with its interface table (kept, see
+// `plx_unity_interfaces_get`; Parallax needs none of Unity's graphics interfaces). Never fails.
+//
+// # Safety
+// `interfaces` is NULL or Unity's table, valid until `UnityPluginUnload`.
+void UnityPluginLoad(struct plx_unity_interfaces *interfaces);
+#endif
+
+#if defined(PLX_FEATURE_UNITY)
+// Called by Unity before it unloads the plugin: forgets the interface table, every render target
+// and every recorded event outcome. Scenes and buffers stay the host's to free.
+void UnityPluginUnload(void);
+#endif
+
+#if defined(PLX_FEATURE_UNITY)
+// The render-event callback for Unity's `IssuePluginEvent(GetRenderEventFunc(), eventId)`:
+// renders the target registered for `eventId` (`plx_unity_set_render_target`) on the calling
+// (render) thread and records the outcome (`plx_unity_last_event_status`). Never NULL.
+plx_unity_rendering_event GetRenderEventFunc(void);
+#endif
+
+#if defined(PLX_FEATURE_UNITY)
+// Registers what Unity's render event `event_id` renders: the composite of `scene` with
+// `options` (NULL = defaults; copied) into `out` and, when `mask_out` is not NULL, the coverage
+// into it (both descriptors copied; the pixels they point to are written by each event run, as
+// `plx_scene_render` writes them). Replaces an earlier target of that id; `scene` NULL removes
+// it. The scene and the buffers must stay alive until the target is replaced or removed, or the
+// plugin unloaded; while an event runs the scene is busy (another call on it fails with
+// `INVALID_ARGUMENT`, "busy", and so would the event while the host uses the scene: its outcome
+// says so). Thread-safe. Errors: `NULL_ARGUMENT` (`out`, or `out->data`, with a scene);
+// `INVALID_ARGUMENT` (`options->size` too small). On error nothing changes.
+//
+// # Safety
+// `scene` is NULL or a live scene; `options` is NULL or valid for `options->size` bytes; `out`
+// and `mask_out` are NULL or valid `plx_image_out`s, their memory as stated above.
+enum plx_status plx_unity_set_render_target(int32_t event_id,
+                                            struct plx_scene *scene,
+                                            const struct plx_render_options *options,
+                                            const struct plx_image_out *out,
+                                            const struct plx_image_out *mask_out);
+#endif
+
+#if defined(PLX_FEATURE_UNITY)
+// The status the last run of render event `event_id` returned (what `plx_scene_render` returned
+// for its target; `INVALID_ARGUMENT` when no target was registered for it; `PANIC` when one was
+// caught), and into `*runs` (when not NULL) how many times it ran since the plugin was loaded.
+// An id that never ran gives `NOT_AVAILABLE` and 0 runs. Thread-safe.
+//
+// # Safety
+// `runs` is NULL or writable.
+enum plx_status plx_unity_last_event_status(int32_t event_id, uint64_t *runs);
+#endif
+
+#if defined(PLX_FEATURE_UNITY)
+// Copies the message of the last run of render event `event_id` ("" after a success or when it
+// never ran) into `buf`, like `plx_last_error_message` (truncated to `len - 1` bytes plus a NUL,
+// the full size including the NUL in `*needed` when not NULL). Thread-safe. Errors:
+// `NULL_ARGUMENT` (`buf` NULL with `len > 0`).
+//
+// # Safety
+// `buf` points to `len` writable bytes (may be NULL when `len` is 0); `needed` is NULL or
+// writable.
+enum plx_status plx_unity_last_event_message(int32_t event_id,
+                                             char *buf,
+                                             size_t len,
+                                             size_t *needed);
+#endif
+
+#if defined(PLX_FEATURE_UNITY)
+// The interface table Unity gave `UnityPluginLoad`, or NULL before it / after
+// `UnityPluginUnload`. Thread-safe.
+const struct plx_unity_interfaces *plx_unity_interfaces_get(void);
 #endif
 
 #ifdef __cplusplus

@@ -39,6 +39,16 @@ pub mod stereo;
 pub mod trace;
 
 pub use error::{Error, Result, Status};
+/// The vector and matrix crate of the API (pixels, transforms), re-exported so that hosts use the
+/// same version.
+pub use glam;
+
+/// The README's Rust code blocks, compiled (and, unless marked `no_run`, run) as doctests so that
+/// they cannot go stale. Its other blocks are `sh` and `c` (the C one is compiled by
+/// `tests/c_example.rs`); a block without a language would be taken for Rust.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
 
 /// The crate version (`Cargo.toml`), e.g. `"0.1.0"`.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
@@ -54,6 +64,9 @@ pub fn features() -> Vec<&'static str> {
     }
     if cfg!(feature = "cli") {
         f.push("cli");
+    }
+    if cfg!(feature = "unity") {
+        f.push("unity");
     }
     if cfg!(feature = "test-hooks") {
         f.push("test-hooks");

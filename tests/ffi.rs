@@ -39,6 +39,9 @@ fn compile(source: &Path, output: &Path, lib_dir: &Path) {
     if cfg!(feature = "test-hooks") {
         cmd.arg("-DPLX_TEST_HOOKS");
     }
+    if cfg!(feature = "unity") {
+        cmd.arg("-DPLX_FEATURE_UNITY");
+    }
     cmd.arg(source)
         .arg("-o")
         .arg(output)

@@ -5,6 +5,8 @@
 //   message.
 // - Views into library memory (depth, mesh, surfaces) are parallax::Span / parallax::FloatGrid:
 //   like the C views, they stay valid until the next call that changes the scene.
+// - Images the library writes (photo, composite, mask) go into the host's plx_image_out, or into
+//   a parallax::Image (std::vector<uint8_t> with width, height, stride and format).
 // - Thread safety is that of the C API: a Context may be shared by threads; a Scene is used by
 //   one thread at a time (Scene::clone gives another scene sharing the reconstruction).
 //
@@ -134,6 +136,70 @@ using Vec3 = std::array<float, 3>;
 struct Bounds {
     Vec3 local_min, local_max, world_min, world_max;
 };
+
+/// An image owned by the host: `height` rows of `stride` bytes of `format` pixels
+/// (plx_pixel_format), e.g. the composite from Scene::render.
+struct Image {
+    std::vector<uint8_t> pixels;
+    uint32_t width = 0;
+    uint32_t height = 0;
+    /// Bytes from one row to the next.
+    size_t stride = 0;
+    plx_pixel_format format = PLX_PIXEL_FORMAT_RGBA8;
+
+    /// Bytes per pixel of `format` (0 for an unknown one).
+    static size_t bytes_per_pixel(plx_pixel_format format) noexcept {
+        switch (format) {
+            case PLX_PIXEL_FORMAT_GRAY8: return 1;
+            case PLX_PIXEL_FORMAT_RGB8: return 3;
+            case PLX_PIXEL_FORMAT_RGBA8:
+            case PLX_PIXEL_FORMAT_BGRA8:
+            case PLX_PIXEL_FORMAT_GRAY_F32: return 4;
+            case PLX_PIXEL_FORMAT_RGB_F32: return 12;
+            case PLX_PIXEL_FORMAT_RGBA_F16: return 8;
+            case PLX_PIXEL_FORMAT_RGBA_F32: return 16;
+        }
+        return 0;
+    }
+    /// A zeroed `width × height` image of `format` with tightly packed rows.
+    static Image allocate(uint32_t width, uint32_t height, plx_pixel_format format) {
+        Image image;
+        image.width = width;
+        image.height = height;
+        image.format = format;
+        image.stride = static_cast<size_t>(width) * bytes_per_pixel(format);
+        image.pixels.assign(image.stride * height, 0);
+        return image;
+    }
+    /// The C descriptor for the library to write into (valid while `pixels` is not resized).
+    plx_image_out out() noexcept {
+        return plx_image_out{pixels.data(), width, height, stride, static_cast<uint32_t>(format)};
+    }
+    /// The C descriptor for the library to read from.
+    plx_image view() const noexcept {
+        return plx_image{pixels.data(), width, height, stride, static_cast<uint32_t>(format)};
+    }
+    /// First byte of pixel (x, y).
+    const uint8_t* at(uint32_t x, uint32_t y) const {
+        return pixels.data() + y * stride + x * bytes_per_pixel(format);
+    }
+};
+
+/// The main light as AR platforms give it (plx_scene_main_light).
+struct MainLight {
+    /// Unit vector from the scene towards the light (zero without a light).
+    Vec3 direction;
+    /// Linear RGB intensity.
+    Vec3 rgb;
+};
+
+/// Nine RGB spherical-harmonics coefficients, ARCore order (see plx_scene_set_sh9).
+using Sh9 = std::array<float, 27>;
+
+/// A status as text (plx_status_str).
+inline std::string status_str(Status status) {
+    return plx_status_str(static_cast<uint32_t>(status));
+}
 
 /// Levels of the log callback.
 enum class LogLevel : uint32_t {
@@ -352,6 +418,90 @@ public:
     }
     /// Writes the photo into the host's image, in its format and stride.
     void photo(const plx_image_out& out) { check(plx_scene_photo(handle_, &out)); }
+    /// The photo's size (width, height): the size of every image output.
+    std::pair<uint32_t, uint32_t> photo_size() {
+        uint32_t w = 0, h = 0;
+        check(plx_scene_photo_size(handle_, &w, &h));
+        return {w, h};
+    }
+    /// The photo in a new image of `format`.
+    Image photo(plx_pixel_format format = PLX_PIXEL_FORMAT_RGBA8) {
+        const auto size = photo_size();
+        Image image = Image::allocate(size.first, size.second, format);
+        photo(image.out());
+        return image;
+    }
+
+    // ---- composite -----------------------------------------------------------------------
+
+    static plx_render_options default_render_options() {
+        plx_render_options o;
+        detail::check(plx_render_options_init(&o), nullptr);
+        return o;
+    }
+    /// Renders the composite into the host's image `out` (any format and stride, the photo's
+    /// size) and, when `mask` is not null, the artefacts' coverage into `*mask`. `options` null
+    /// = the defaults.
+    void render(const plx_image_out& out, const plx_image_out* mask = nullptr,
+                const plx_render_options* options = nullptr) {
+        check(plx_scene_render(handle_, options, &out, mask));
+    }
+    /// Renders the composite into a new image of `format`; the coverage into `*mask` (a new
+    /// GRAY8 image) when `mask` is not null.
+    Image render(plx_pixel_format format, Image* mask = nullptr,
+                 const plx_render_options* options = nullptr) {
+        const auto size = photo_size();
+        Image image = Image::allocate(size.first, size.second, format);
+        const plx_image_out out = image.out();
+        if (mask) {
+            Image m = Image::allocate(size.first, size.second, PLX_PIXEL_FORMAT_GRAY8);
+            const plx_image_out mask_out = m.out();
+            check(plx_scene_render(handle_, options, &out, &mask_out));
+            *mask = std::move(m);
+        } else {
+            check(plx_scene_render(handle_, options, &out, nullptr));
+        }
+        return image;
+    }
+
+    // ---- lighting ------------------------------------------------------------------------
+
+    /// The lights in use (the host's, else the estimated ones).
+    std::vector<plx_light> lights() {
+        size_t count = 0;
+        check(plx_scene_lights(handle_, nullptr, 0, &count));
+        std::vector<plx_light> out(count);
+        if (count > 0) check(plx_scene_lights(handle_, out.data(), out.size(), &count));
+        out.resize(count < out.size() ? count : out.size());
+        return out;
+    }
+    /// Replaces the estimated lights (an empty list: no direct light).
+    void set_lights(const std::vector<plx_light>& lights) {
+        check(plx_scene_set_lights(handle_, lights.empty() ? nullptr : lights.data(),
+                                   lights.size()));
+    }
+    /// Back to the estimated lights.
+    void reset_lights() { check(plx_scene_reset_lights(handle_)); }
+    MainLight main_light() {
+        MainLight l{};
+        check(plx_scene_main_light(handle_, l.direction.data(), l.rgb.data()));
+        return l;
+    }
+    /// The ambient light (the host's, else projected from the environment).
+    Sh9 sh9() {
+        Sh9 v{};
+        check(plx_scene_sh9(handle_, v.data()));
+        return v;
+    }
+    void set_sh9(const Sh9& sh9) { check(plx_scene_set_sh9(handle_, sh9.data())); }
+    /// Back to the estimated ambient light.
+    void reset_sh9() { check(plx_scene_set_sh9(handle_, nullptr)); }
+    /// The host's equirectangular environment map (2:1, copied).
+    void set_environment_equirect(const plx_image& image) {
+        check(plx_scene_set_environment_equirect(handle_, &image));
+    }
+    /// Back to the estimated environment.
+    void reset_environment() { check(plx_scene_set_environment_equirect(handle_, nullptr)); }
     /// The JSON report of the last call that computed or fetched a product.
     std::string report() {
         return detail::read_string([&](char* buf, size_t len, size_t* needed) {
@@ -441,6 +591,39 @@ private:
     plx_scene* handle_ = nullptr;
     std::unique_ptr<ProgressHolder> progress_;
 };
+
+#if defined(PLX_FEATURE_UNITY)
+/// Unity's render-thread events (library built with the `unity` feature; define
+/// PLX_FEATURE_UNITY before including). Unity itself calls UnityPluginLoad, UnityPluginUnload and
+/// GetRenderEventFunc; the host registers what each event id renders.
+namespace unity {
+/// Event `event_id` renders `scene`'s composite into `out` (and the coverage into `*mask`); the
+/// scene and the buffers must outlive the registration (see plx_unity_set_render_target).
+inline void set_render_target(int32_t event_id, Scene& scene, const plx_image_out& out,
+                              const plx_image_out* mask = nullptr,
+                              const plx_render_options* options = nullptr) {
+    detail::check(plx_unity_set_render_target(event_id, scene.get(), options, &out, mask),
+                  nullptr);
+}
+/// Event `event_id` renders nothing any more.
+inline void clear_render_target(int32_t event_id) {
+    detail::check(plx_unity_set_render_target(event_id, nullptr, nullptr, nullptr, nullptr),
+                  nullptr);
+}
+/// The status of the event's last run (NOT_AVAILABLE if it never ran) and its run count.
+inline Status last_event_status(int32_t event_id, uint64_t* runs = nullptr) {
+    return plx_unity_last_event_status(event_id, runs);
+}
+/// The message of the event's last run ("" after a success).
+inline std::string last_event_message(int32_t event_id) {
+    return detail::read_string([&](char* buf, size_t len, size_t* needed) {
+        detail::check(plx_unity_last_event_message(event_id, buf, len, needed), nullptr);
+    });
+}
+/// The interface table Unity gave UnityPluginLoad (null when not loaded).
+inline const plx_unity_interfaces* interfaces() noexcept { return plx_unity_interfaces_get(); }
+}  // namespace unity
+#endif
 
 }  // namespace parallax
 

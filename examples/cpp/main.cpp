@@ -1,19 +1,32 @@
 // A C++ host of Parallax: loads a stereo pair, reconstructs depth, mesh and support surfaces,
-// inserts a glTF model standing on the scene at a chosen pixel, and prints what it found as
-// key=value lines (read by tests/cpp.rs).
+// inserts a glTF model standing on the scene at a chosen pixel and, given OUT.ppm, renders the
+// composite and saves it as a binary PPM (and the model's coverage as a PGM next to it), printing
+// what it found as key=value lines (read by tests/cpp.rs and tests/packaging.rs).
 //
-//   parallax_example_cpp LEFT.png RIGHT.png MODEL.glb FOCAL_PX BASELINE_M X Y
+//   parallax_example_cpp LEFT.png RIGHT.png MODEL.glb FOCAL_PX BASELINE_M X Y [OUT.ppm]
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include "parallax.hpp"
 
+// Writes an RGB8 image as binary PPM ("P6") or a GRAY8 one as PGM ("P5").
+static bool save_pnm(const std::string& path, const parallax::Image& image, const char* magic) {
+    std::ofstream file(path, std::ios::binary);
+    file << magic << "\n" << image.width << " " << image.height << "\n255\n";
+    const size_t row = image.width * parallax::Image::bytes_per_pixel(image.format);
+    for (uint32_t y = 0; y < image.height; y++)
+        file.write(reinterpret_cast<const char*>(image.at(0, y)), static_cast<std::streamsize>(row));
+    return static_cast<bool>(file);
+}
+
 int main(int argc, char** argv) {
-    if (argc != 8) {
-        std::fprintf(stderr, "usage: %s LEFT RIGHT MODEL.glb FOCAL_PX BASELINE_M X Y\n", argv[0]);
+    if (argc != 8 && argc != 9) {
+        std::fprintf(stderr, "usage: %s LEFT RIGHT MODEL.glb FOCAL_PX BASELINE_M X Y [OUT.ppm]\n",
+                     argv[0]);
         return 2;
     }
     try {
@@ -98,8 +111,35 @@ int main(int argc, char** argv) {
                     variant.report().find("\"status\": \"reused\"") != std::string::npos);
         std::printf("progress_stages=%d\n", stages);
 
-        // The composite goes here once the renderer's C function exists: it will write into a
-        // host image (plx_image_out) exactly like scene.photo() above.
+        if (argc == 9) {
+            // The lighting the model is rendered with: the estimated lights and ambient SH9.
+            const std::vector<plx_light> lights = scene.lights();
+            const parallax::Sh9 sh9 = scene.sh9();
+            std::printf("lights=%zu\nsh9_dc=%.4f,%.4f,%.4f\n", lights.size(), sh9[0], sh9[1],
+                        sh9[2]);
+
+            // The composite: the photo with the model rendered in, and the model's coverage.
+            plx_render_options options = parallax::Scene::default_render_options();
+            options.shadow_map_size = 512;
+            parallax::Image mask;
+            const parallax::Image composite =
+                scene.render(PLX_PIXEL_FORMAT_RGB8, &mask, &options);
+            size_t covered = 0;
+            for (uint32_t y = 0; y < mask.height; y++)
+                for (uint32_t x = 0; x < mask.width; x++) covered += *mask.at(x, y) > 127;
+            std::printf("composite_size=%ux%u\nmask_pixels=%zu\n", composite.width,
+                        composite.height, covered);
+            std::printf("mask_at_pixel=%u\n",
+                        static_cast<unsigned>(
+                            *mask.at(static_cast<uint32_t>(px), static_cast<uint32_t>(py))));
+            const std::string path = argv[8];
+            if (!save_pnm(path, composite, "P6") ||
+                !save_pnm(path.substr(0, path.find_last_of('.')) + "-mask.pgm", mask, "P5")) {
+                std::fprintf(stderr, "cannot write %s\n", path.c_str());
+                return 1;
+            }
+            std::printf("composite=%s\n", path.c_str());
+        }
 
         parallax::set_log_callback(nullptr);
         return 0;

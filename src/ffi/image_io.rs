@@ -161,6 +161,36 @@ pub unsafe extern "C" fn plx_scene_photo(
     })
 }
 
+/// The photo's size in pixels (the left view of the stereo pair) into `*width` and `*height`:
+/// the size every image output of the scene (`plx_scene_photo`, `plx_scene_render`) must have.
+/// Cheap: decodes nothing. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a stereo pair.
+///
+/// # Safety
+/// `scene` is a live scene; `width` and `height` are writable.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_photo_size(
+    scene: *mut plx_scene,
+    width: *mut u32,
+    height: *mut u32,
+) -> Status {
+    with_scene(scene, |scene| {
+        if width.is_null() {
+            return Err(null_argument("width"));
+        }
+        if height.is_null() {
+            return Err(null_argument("height"));
+        }
+        let (w, h) = scene.photo_size().ok_or_else(|| {
+            CallError::from(Error::NotAvailable(
+                "no stereo pair: set one with plx_scene_set_stereo_pair".into(),
+            ))
+        })?;
+        *width = w;
+        *height = h;
+        Ok(())
+    })
+}
+
 /// Reads a path argument as a file path (bytes as they are on Unix, UTF-8 elsewhere).
 unsafe fn c_path(p: *const c_char, name: &str) -> Result<std::path::PathBuf, CallError> {
     if p.is_null() {

@@ -31,5 +31,7 @@ pub mod status;
 pub mod stereo;
 #[cfg(feature = "test-hooks")]
 pub mod test_hooks;
+#[cfg(feature = "unity")]
+pub mod unity;
 
 pub use crate::error::Status as plx_status;
