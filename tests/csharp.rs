@@ -228,7 +228,9 @@ fn parse_header(text: &str) -> Api {
             let Some(name) = before.rsplit([' ', '*']).next() else {
                 continue;
             };
-            if !name.starts_with("plx_") {
+            // Every function, the host entry points too (`GetRenderEventFunc`): C# may import
+            // those, and each import must name a function of the header.
+            if name.is_empty() || !name.chars().all(|c| c.is_alphanumeric() || c == '_') {
                 continue;
             }
             let ret = c_decl(before[..before.len() - name.len()].trim());
@@ -528,8 +530,10 @@ fn compatible(c: &Param, cs: &Param, api: &Api) -> Result<(), String> {
     }
 }
 
-fn compatible_return(c: &Param, cs: &Param) -> bool {
+fn compatible_return(c: &Param, cs: &Param, api: &Api) -> bool {
     match c.depth {
+        // A returned function pointer (a callback type) is an IntPtr.
+        0 if api.callbacks.contains_key(&c.ty) => cs.ty == "IntPtr",
         0 => scalar(&c.ty) == Some(cs.ty.as_str()),
         _ => cs.ty == "IntPtr",
     }
@@ -576,13 +580,17 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
     let (c, cs) = (header_api(), csharp_api());
     // The parser reads what the header holds (a sanity floor, so a broken parser cannot pass).
     assert!(c.functions.len() >= 50, "{:?}", c.functions.keys());
-    assert!(c.structs.len() >= 13 && c.enums.len() >= 9 && c.callbacks.len() == 2);
+    assert!(c.structs.len() >= 13 && c.enums.len() >= 9 && c.callbacks.len() >= 2);
     assert!(!c.functions.contains_key("plx_test_panic"));
+    assert!(c.functions.contains_key("plx_scene_photo_size"));
     let mut problems = Vec::new();
     for (name, decls) in &c.functions {
         let (c_params, c_ret) = &decls[0];
         let Some(overloads) = cs.functions.get(name) else {
-            problems.push(format!("{name}: no DllImport in bindings/csharp"));
+            // Every plx_ function; host entry points (Unity's UnityPluginLoad …) only when imported.
+            if name.starts_with("plx_") {
+                problems.push(format!("{name}: no DllImport in bindings/csharp"));
+            }
             continue;
         };
         for (cs_params, cs_ret) in overloads {
@@ -594,7 +602,7 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
                 ));
                 continue;
             }
-            if !compatible_return(c_ret, cs_ret) {
+            if !compatible_return(c_ret, cs_ret, &c) {
                 problems.push(format!(
                     "{name}: returns {c_ret:?} in C, {} in C#",
                     cs_ret.ty
@@ -664,7 +672,7 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
         match cs.callbacks.get(&pascal(name)) {
             None => problems.push(format!("callback {name}: no delegate {}", pascal(name))),
             Some((cs_params, cs_ret)) => {
-                if cs_params.len() != params.len() || !compatible_return(ret, cs_ret) {
+                if cs_params.len() != params.len() || !compatible_return(ret, cs_ret, &c) {
                     problems.push(format!("callback {name}: signature differs"));
                 }
                 for (a, b) in params.iter().zip(cs_params) {
@@ -840,7 +848,8 @@ fn vec3(v: &HashMap<String, String>, key: &str) -> [f64; 3] {
 fn check_layouts(v: &HashMap<String, String>) {
     use parallax::ffi;
     use std::mem::size_of;
-    let rust: HashMap<&str, usize> = [
+    #[allow(unused_mut)]
+    let mut rust: HashMap<&str, usize> = [
         (
             "PlxContextOptions",
             size_of::<ffi::context::plx_context_options>(),
@@ -866,7 +875,19 @@ fn check_layouts(v: &HashMap<String, String>) {
     ]
     .into_iter()
     .collect();
+    #[cfg(feature = "unity")]
+    {
+        rust.insert("PlxUnityGuid", size_of::<ffi::unity::plx_unity_guid>());
+        rust.insert(
+            "PlxUnityInterfaces",
+            size_of::<ffi::unity::plx_unity_interfaces>(),
+        );
+    }
     for name in header_api().structs.keys() {
+        // The Unity plugin's types exist in Rust only with the `unity` feature.
+        if name.starts_with("plx_unity_") && !cfg!(feature = "unity") {
+            continue;
+        }
         let name = pascal(name);
         let expected = rust
             .get(name.as_str())
@@ -1032,6 +1053,19 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
         "{stdout}"
     );
     assert!(v["error_no_pair"].starts_with("NotAvailable: "), "{stdout}");
+    // Unity's render thread: the event registered from C#, run on another thread through the
+    // function pointer Unity would call, renders the same composite into the pinned buffer.
+    if cfg!(feature = "unity") {
+        assert_eq!(v["unity_event"], "Ok:1", "{stdout}");
+        assert_eq!(v["unity_event_message"], "", "{stdout}");
+        assert!(number(&v, "unity_event_max_diff") <= 2.0, "{stdout}");
+        assert!(
+            v["unity_unregistered"].starts_with("InvalidArgument:1"),
+            "{stdout}"
+        );
+    } else {
+        assert_eq!(v["unity_plugin"], "absent", "{stdout}");
+    }
     // After the cancelled calls the scene still answers.
     assert!(
         (number(&v, "disparity_after_cancel") - d).abs() < 1e-3,

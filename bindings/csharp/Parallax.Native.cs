@@ -333,6 +333,28 @@ namespace Parallax
         }
     }
 
+    /// <summary>A Unity interface GUID (UnityInterfaceGUID).</summary>
+    [StructLayout(LayoutKind.Sequential)]
+    public struct PlxUnityGuid
+    {
+        public ulong High;
+        public ulong Low;
+    }
+
+    /// <summary>The layout of Unity's IUnityInterfaces (function pointers).</summary>
+    [StructLayout(LayoutKind.Sequential)]
+    public struct PlxUnityInterfaces
+    {
+        public IntPtr GetInterface;
+        public IntPtr RegisterInterface;
+        public IntPtr GetInterfaceSplit;
+        public IntPtr RegisterInterfaceSplit;
+    }
+
+    /// <summary>plx_unity_rendering_event: Unity's UnityRenderingEvent, run on its render thread.</summary>
+    [UnmanagedFunctionPointer(CallingConvention.Cdecl)]
+    public delegate void PlxUnityRenderingEvent(int eventId);
+
     /// <summary>plx_log_fn: one log line; message is NUL-terminated UTF-8, valid during the call.</summary>
     [UnmanagedFunctionPointer(CallingConvention.Cdecl)]
     public delegate void PlxLogFn(IntPtr userData, uint level, IntPtr message);
@@ -440,6 +462,9 @@ namespace Parallax
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
         public static extern PlxStatus plx_scene_photo(SceneHandle scene, ref PlxImageOut output);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_scene_photo_size(SceneHandle scene, out uint width, out uint height);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
         public static extern PlxStatus plx_scene_load_stereo_pair(SceneHandle scene, byte[] leftPath, byte[] rightPath);
@@ -573,6 +598,31 @@ namespace Parallax
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
         public static extern PlxStatus plx_last_error_message(IntPtr handle, [Out] byte[] buf, UIntPtr len, out UIntPtr needed);
+
+        // ---- Unity rendering plugin (a library built with the `unity` feature) ----
+
+        /// <summary>The render-event function for GL.IssuePluginEvent / CommandBuffer.IssuePluginEvent.</summary>
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern IntPtr GetRenderEventFunc();
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_unity_set_render_target(int eventId, SceneHandle scene, ref PlxRenderOptions options, ref PlxImageOut output, ref PlxImageOut maskOut);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_unity_set_render_target(int eventId, SceneHandle scene, ref PlxRenderOptions options, ref PlxImageOut output, IntPtr maskOut);
+
+        /// <summary>With scene IntPtr.Zero: removes the target of eventId.</summary>
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_unity_set_render_target(int eventId, IntPtr scene, IntPtr options, IntPtr output, IntPtr maskOut);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_unity_last_event_status(int eventId, out ulong runs);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_unity_last_event_message(int eventId, [Out] byte[] buf, UIntPtr len, out UIntPtr needed);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern IntPtr plx_unity_interfaces_get();
 
         // ---- stereo ----
 

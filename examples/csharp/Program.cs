@@ -110,6 +110,8 @@ static class Program
                     Print("clone_without_box_is_photo", same ? 1 : 0);
                 }
 
+                UnityRenderThread(scene, composite, w, h);
+
                 // Host lights replace the estimate and come back as given.
                 scene.SetLights(new PlxLight[] { PlxLight.Directional(new float[] { 0, -1, 0 }, 5, new float[] { 2, 2, 2 }) });
                 PlxLight[] mine = scene.Lights();
@@ -146,6 +148,40 @@ static class Program
         }
         Print("log_warnings", warnings);
         return 0;
+    }
+
+    // What Unity does with a library built with the `unity` feature: register a render target,
+    // then call the render-event function on its render thread (here: another thread).
+    static void UnityRenderThread(Scene scene, byte[] expected, int w, int h)
+    {
+        IntPtr function;
+        try
+        {
+            function = UnityRenderEvents.Function;
+        }
+        catch (EntryPointNotFoundException)
+        {
+            Print("unity_plugin", "absent");
+            return;
+        }
+        const int eventId = 7;
+        byte[] target = new byte[w * h * 4];
+        UnityRenderEvents.SetTarget(eventId, scene, target, w, h);
+        PlxUnityRenderingEvent render = (PlxUnityRenderingEvent)Marshal.GetDelegateForFunctionPointer(function, typeof(PlxUnityRenderingEvent));
+        System.Threading.Thread thread = new System.Threading.Thread(() => { render(eventId); render(eventId + 1); });
+        thread.Start();
+        thread.Join();
+        UnityRenderEvents.RemoveTarget(eventId);
+        ulong runs;
+        PlxStatus status = UnityRenderEvents.LastStatus(eventId, out runs);
+        Print("unity_event", status + ":" + runs);
+        Print("unity_event_message", UnityRenderEvents.LastMessage(eventId));
+        int maxDiff = 0;
+        for (int i = 0; i < target.Length; i++)
+            maxDiff = Math.Max(maxDiff, Math.Abs(target[i] - expected[i]));
+        Print("unity_event_max_diff", maxDiff);
+        status = UnityRenderEvents.LastStatus(eventId + 1, out runs);
+        Print("unity_unregistered", status + ":" + runs + ":" + UnityRenderEvents.LastMessage(eventId + 1));
     }
 
     static void Expect(string key, Action action)

@@ -285,7 +285,6 @@ namespace Parallax
         }
 
         static readonly PlxProgressFn progressTrampoline = ProgressTrampoline;
-        int width, height; // the photo's size, 0 until known
 
         /// <summary>An empty scene in <paramref name="context"/> (which may be disposed first).</summary>
         public Scene(Context context)
@@ -333,8 +332,6 @@ namespace Parallax
                 Check(status);
             }
             Scene s = new Scene(copy);
-            s.width = width;
-            s.height = height;
             // The C copy points at this scene's callback holder: give it its own (or none).
             Func<string, float, bool> callback = null;
             if (Handle.Progress.IsAllocated)
@@ -360,8 +357,6 @@ namespace Parallax
                 CheckLength(left, stride, height, width, format, "left");
                 CheckLength(right, stride, height, width, format, "right");
                 Check(Native.plx_scene_set_stereo_pair(Handle, ref li, ref ri));
-                this.width = width;
-                this.height = height;
             }
             finally
             {
@@ -374,7 +369,6 @@ namespace Parallax
         public void LoadStereoPair(string leftPath, string rightPath)
         {
             Check(Native.plx_scene_load_stereo_pair(Handle, Utf8.Encode(leftPath), Utf8.Encode(rightPath)));
-            width = height = 0;
         }
 
         public void SetCalibration(PlxCalibration calibration)
@@ -570,19 +564,13 @@ namespace Parallax
             return m;
         }
 
-        /// <summary>The photo's size. Known after SetStereoPair; after LoadStereoPair it is read from the
-        /// disparity (the C API has no size query), which runs stereo matching if it has not run yet.</summary>
+        /// <summary>The photo's size (cheap: decodes and computes nothing).</summary>
         public void PhotoSize(out int width, out int height)
         {
-            if (this.width == 0)
-            {
-                PlxFloatView v;
-                Check(Native.plx_scene_disparity(Handle, out v));
-                this.width = (int)v.Width;
-                this.height = (int)v.Height;
-            }
-            width = this.width;
-            height = this.height;
+            uint w, h;
+            Check(Native.plx_scene_photo_size(Handle, out w, out h));
+            width = (int)w;
+            height = (int)h;
         }
 
         /// <summary>Writes the photo into a host image of its size.</summary>
@@ -862,6 +850,121 @@ namespace Parallax
             if (n > 0)
                 Marshal.Copy(data, a, 0, n);
             return a;
+        }
+    }
+
+    /// <summary>
+    /// Unity's render thread (a native library built with the `unity` feature): registers what a
+    /// render event renders, for GL.IssuePluginEvent(UnityRenderEvents.Function, eventId) or
+    /// CommandBuffer.IssuePluginEvent. Parallax renders into the registered CPU buffer (rows top
+    /// first); upload it into a texture afterwards. The buffers stay pinned and the scene
+    /// referenced until the target is replaced or removed. Thread-safe.
+    /// </summary>
+    public static class UnityRenderEvents
+    {
+        sealed class Target
+        {
+            public Scene Scene;
+            public GCHandle Output, Mask;
+
+            public void Release()
+            {
+                if (Output.IsAllocated)
+                    Output.Free();
+                if (Mask.IsAllocated)
+                    Mask.Free();
+            }
+        }
+
+        static readonly Dictionary<int, Target> targets = new Dictionary<int, Target>();
+
+        /// <summary>The render-event function to pass to IssuePluginEvent.</summary>
+        public static IntPtr Function { get { return Native.GetRenderEventFunc(); } }
+
+        /// <summary>Event <paramref name="eventId"/> renders <paramref name="scene"/>'s composite into
+        /// <paramref name="output"/> (the photo's size, <paramref name="format"/>, rows top first) and, when
+        /// not null, the coverage into <paramref name="mask"/> (width * height floats).</summary>
+        public static void SetTarget(int eventId, Scene scene, byte[] output, int width, int height,
+                                     PlxPixelFormat format = PlxPixelFormat.Rgba8, PlxRenderOptions? options = null,
+                                     float[] mask = null)
+        {
+            int stride = width * Scene.BytesPerPixel(format);
+            if (output == null || width <= 0 || height <= 0 || output.Length < stride * height)
+                throw new ArgumentException("output cannot hold " + width + "x" + height + " pixels of " + format);
+            if (mask != null && mask.Length < width * height)
+                throw new ArgumentException("mask holds fewer than width * height floats");
+            Target t = new Target();
+            t.Scene = scene;
+            t.Output = GCHandle.Alloc(output, GCHandleType.Pinned);
+            if (mask != null)
+                t.Mask = GCHandle.Alloc(mask, GCHandleType.Pinned);
+            try
+            {
+                PlxImageOut o;
+                o.Data = t.Output.AddrOfPinnedObject();
+                o.Width = (uint)width;
+                o.Height = (uint)height;
+                o.Stride = (UIntPtr)stride;
+                o.Format = (uint)format;
+                PlxRenderOptions opts = options.HasValue ? options.Value : PlxRenderOptions.CreateDefault();
+                lock (targets)
+                {
+                    PlxStatus status;
+                    if (mask != null)
+                    {
+                        PlxImageOut m = o;
+                        m.Data = t.Mask.AddrOfPinnedObject();
+                        m.Stride = (UIntPtr)(width * 4);
+                        m.Format = (uint)PlxPixelFormat.GrayF32;
+                        status = Native.plx_unity_set_render_target(eventId, scene.Handle, ref opts, ref o, ref m);
+                    }
+                    else
+                    {
+                        status = Native.plx_unity_set_render_target(eventId, scene.Handle, ref opts, ref o, IntPtr.Zero);
+                    }
+                    Errors.Check(status, null);
+                    Target old;
+                    if (targets.TryGetValue(eventId, out old))
+                        old.Release();
+                    targets[eventId] = t;
+                }
+            }
+            catch
+            {
+                t.Release();
+                throw;
+            }
+        }
+
+        /// <summary>Forgets what event <paramref name="eventId"/> renders, and unpins its buffers.</summary>
+        public static void RemoveTarget(int eventId)
+        {
+            lock (targets)
+            {
+                Errors.Check(Native.plx_unity_set_render_target(eventId, IntPtr.Zero, IntPtr.Zero, IntPtr.Zero, IntPtr.Zero), null);
+                Target old;
+                if (targets.TryGetValue(eventId, out old))
+                {
+                    old.Release();
+                    targets.Remove(eventId);
+                }
+            }
+        }
+
+        /// <summary>The status of the last run of event <paramref name="eventId"/> (NotAvailable if it
+        /// never ran) and how many times it ran.</summary>
+        public static PlxStatus LastStatus(int eventId, out ulong runs)
+        {
+            return Native.plx_unity_last_event_status(eventId, out runs);
+        }
+
+        /// <summary>The message of the last run of event <paramref name="eventId"/> ("" after a success).</summary>
+        public static string LastMessage(int eventId)
+        {
+            UIntPtr needed = UIntPtr.Zero;
+            return Utf8.Read(
+                (buf, len) => Native.plx_unity_last_event_message(eventId, buf, len, out needed),
+                () => needed, null);
         }
     }
 }
