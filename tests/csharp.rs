@@ -1141,9 +1141,11 @@ fn unity_compositor_fills_the_output_texture_the_right_way_up() {
         root().join("tests/csharp/UnityEngine.cs").as_os_str(),
     ]);
     let runtime_dll = dir.path().join("Parallax.Runtime.dll");
+    // Compiled as Unity compiles it: UNITY_5_3_OR_NEWER selects AOT.MonoPInvokeCallback.
     let mut args: Vec<std::ffi::OsString> = vec![
         "-target:library".into(),
         "-langversion:7".into(),
+        "-define:UNITY_5_3_OR_NEWER".into(),
         format!("-r:{}", unity_dll.display()).into(),
         format!("-out:{}", runtime_dll.display()).into(),
     ];

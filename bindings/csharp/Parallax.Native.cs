@@ -396,15 +396,17 @@ namespace Parallax
         }
     }
 
+#if !UNITY_5_3_OR_NEWER
     /// <summary>
-    /// Marks a static method that native code calls back (IL2CPP on iOS needs it; matched by
-    /// name, so this stand-in for Unity's AOT.MonoPInvokeCallbackAttribute works outside Unity).
+    /// Marks a static method that native code calls back. In Unity the wrapper uses
+    /// AOT.MonoPInvokeCallbackAttribute (IL2CPP needs it); elsewhere this stand-in.
     /// </summary>
     [AttributeUsage(AttributeTargets.Method)]
     public sealed class MonoPInvokeCallbackAttribute : Attribute
     {
         public MonoPInvokeCallbackAttribute(Type type) { }
     }
+#endif
 
     /// <summary>The C functions, one DllImport each (C names and parameter order).</summary>
     public static class Native

@@ -62,3 +62,13 @@ namespace UnityEngine
         public static void LogError(object message) { errors++; Console.Error.WriteLine("error: " + message); }
     }
 }
+
+namespace AOT
+{
+    /// <summary>Unity's marker for static methods called from native code (IL2CPP).</summary>
+    [AttributeUsage(AttributeTargets.Method)]
+    public class MonoPInvokeCallbackAttribute : Attribute
+    {
+        public MonoPInvokeCallbackAttribute(Type type) { }
+    }
+}

@@ -13,6 +13,10 @@ using System;
 using System.Collections.Generic;
 using System.Runtime.InteropServices;
 using System.Text;
+#if UNITY_5_3_OR_NEWER
+// IL2CPP (iOS, consoles) compiles callbacks from native code only when marked with this one.
+using MonoPInvokeCallbackAttribute = AOT.MonoPInvokeCallbackAttribute;
+#endif
 
 namespace Parallax
 {
