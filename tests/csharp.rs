@@ -925,6 +925,12 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
     );
     let stdout = String::from_utf8_lossy(&out.stdout).to_string();
     println!("{stdout}");
+    // PARALLAX_CSHARP_OUT=DIR keeps the raw images for a look.
+    if let Some(keep) = std::env::var_os("PARALLAX_CSHARP_OUT") {
+        for f in ["composite.rgba", "photo.rgba", "mask.f32"] {
+            std::fs::copy(dir.path().join(f), Path::new(&keep).join(f)).unwrap();
+        }
+    }
     let v = values(&out.stdout);
     check_layouts(&v);
     assert_eq!(v["version"], env!("CARGO_PKG_VERSION"));
