@@ -1016,6 +1016,34 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
         far.len()
     );
 
+    // The rest of the API, once each through the wrapper (EveryOtherCall in the example).
+    let cam: Vec<f64> = v["camera"].split(',').map(|x| x.parse().unwrap()).collect();
+    assert!((cam[0] - truth.focal_px).abs() < 1e-3, "{stdout}");
+    assert_eq!((cam[1], cam[2]), (w as f64 / 2.0, h as f64 / 2.0));
+    assert_eq!(v["clip"], "0.25,20");
+    let range: Vec<f64> = v["depth_buffer_range"]
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!(
+        0.0 <= range[0] && range[0] < range[1] && range[1] <= 1.0,
+        "{stdout}"
+    );
+    assert_eq!(v["confidence_size"], format!("{w}x{h}"));
+    assert_eq!(v["mesh_step2_smaller"], "1");
+    assert_eq!(number(&v, "fast_disparity_size") as usize, w);
+    assert!(dist(vec3(&v, "place_translation"), hit) < 0.01, "{stdout}");
+    assert!(
+        dist(vec3(&v, "place_on_ray_translation"), hit) < 0.01,
+        "{stdout}"
+    );
+    assert_eq!(v["memory_artefact_world_min"], "0,-0.25,-2.5");
+    assert_eq!(v["sh9_set"], "0.25,0.5,0.75");
+    assert_eq!(v["host_depth"], "2");
+    assert_eq!(v["host_depth_stereo_skipped"], "1");
+    assert_eq!(v["host_camera_fx"], "20");
+    assert!(v["error_pixel_cap"].starts_with("TooLarge: "), "{stdout}");
+
     // Failures are ParallaxExceptions carrying the status and the library's message.
     let missing = dir.path().join("missing.png");
     let e = &v["error_missing_file"];
