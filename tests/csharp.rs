@@ -575,14 +575,8 @@ fn header_api() -> Api {
     parse_header(&read(&root().join("include/parallax.h")))
 }
 
-#[test]
-fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
-    let (c, cs) = (header_api(), csharp_api());
-    // The parser reads what the header holds (a sanity floor, so a broken parser cannot pass).
-    assert!(c.functions.len() >= 50, "{:?}", c.functions.keys());
-    assert!(c.structs.len() >= 13 && c.enums.len() >= 9 && c.callbacks.len() >= 2);
-    assert!(!c.functions.contains_key("plx_test_panic"));
-    assert!(c.functions.contains_key("plx_scene_photo_size"));
+/// What differs between the header's declarations `c` and the C# ones `cs`, one line each.
+fn drift(c: &Api, cs: &Api) -> Vec<String> {
     let mut problems = Vec::new();
     for (name, decls) in &c.functions {
         let (c_params, c_ret) = &decls[0];
@@ -602,14 +596,14 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
                 ));
                 continue;
             }
-            if !compatible_return(c_ret, cs_ret, &c) {
+            if !compatible_return(c_ret, cs_ret, c) {
                 problems.push(format!(
                     "{name}: returns {c_ret:?} in C, {} in C#",
                     cs_ret.ty
                 ));
             }
             for (a, b) in c_params.iter().zip(cs_params) {
-                if let Err(e) = compatible(a, b, &c) {
+                if let Err(e) = compatible(a, b, c) {
                     problems.push(format!("{name}: {e}"));
                 }
             }
@@ -672,11 +666,11 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
         match cs.callbacks.get(&pascal(name)) {
             None => problems.push(format!("callback {name}: no delegate {}", pascal(name))),
             Some((cs_params, cs_ret)) => {
-                if cs_params.len() != params.len() || !compatible_return(ret, cs_ret, &c) {
+                if cs_params.len() != params.len() || !compatible_return(ret, cs_ret, c) {
                     problems.push(format!("callback {name}: signature differs"));
                 }
                 for (a, b) in params.iter().zip(cs_params) {
-                    if let Err(e) = compatible(a, b, &c) {
+                    if let Err(e) = compatible(a, b, c) {
                         problems.push(format!("callback {name}: {e}"));
                     }
                 }
@@ -684,6 +678,18 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
         }
     }
     problems.sort();
+    problems
+}
+
+#[test]
+fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
+    let (c, cs) = (header_api(), csharp_api());
+    // The parser reads what the header holds (a sanity floor, so a broken parser cannot pass).
+    assert!(c.functions.len() >= 50, "{:?}", c.functions.keys());
+    assert!(c.structs.len() >= 13 && c.enums.len() >= 9 && c.callbacks.len() >= 2);
+    assert!(!c.functions.contains_key("plx_test_panic"));
+    assert!(c.functions.contains_key("plx_scene_photo_size"));
+    let problems = drift(&c, &cs);
     assert!(
         problems.is_empty(),
         "bindings/csharp has drifted from include/parallax.h:\n  {}",
@@ -692,41 +698,105 @@ fn every_exported_function_struct_enum_and_callback_has_its_csharp_twin() {
 }
 
 #[test]
-fn the_drift_check_catches_a_missing_import_a_changed_arity_and_a_reordered_struct() {
-    let c = header_api();
-    let text: String = binding_files().iter().map(|p| read(p) + "\n").collect();
-    let base = parse_csharp(&text);
-    // Each mutation of the C# text must show up in what the check compares.
-    let dropped = parse_csharp(&text.replace(
-        "public static extern PlxStatus plx_scene_up(",
-        "public static extern PlxStatus plx_scene_upp(",
-    ));
-    assert!(!dropped.functions.contains_key("plx_scene_up"));
-    let arity = parse_csharp(&text.replace(
-        "plx_scene_set_clip(SceneHandle scene, float near, float far)",
-        "plx_scene_set_clip(SceneHandle scene, float near)",
-    ));
-    assert_eq!(arity.functions["plx_scene_set_clip"][0].0.len(), 2);
-    assert_eq!(c.functions["plx_scene_set_clip"][0].0.len(), 3);
-    let reordered = parse_csharp(&text.replace(
-        "public float Fx;\n        public float Fy;",
-        "public float Fy;\n        public float Fx;",
-    ));
-    let fields = &c.structs["plx_camera"];
-    assert!(fields
-        .iter()
-        .zip(&base.structs["PlxCamera"])
-        .all(|(a, b)| compatible_field(a, b)));
-    assert!(!fields
-        .iter()
-        .zip(&reordered.structs["PlxCamera"])
-        .all(|(a, b)| compatible_field(a, b)));
-    // A pointer parameter given as a plain value is refused.
-    let scene = c_decl("struct plx_scene *scene");
+fn the_drift_check_reports_each_kind_of_change_on_either_side() {
+    let header = read(&root().join("include/parallax.h"));
+    let csharp: String = binding_files().iter().map(|p| read(p) + "\n").collect();
+    let (c, cs) = (parse_header(&header), parse_csharp(&csharp));
+    assert_eq!(drift(&c, &cs), Vec::<String>::new());
+    let expect = |c: &Api, cs: &Api, needle: &str| {
+        let problems = drift(c, cs);
+        assert!(
+            problems.iter().any(|p| p.contains(needle)),
+            "no {needle:?} in {problems:?}"
+        );
+    };
+    let cs_with = |from: &str, to: &str| {
+        assert!(csharp.contains(from), "{from:?} not in the C# files");
+        parse_csharp(&csharp.replace(from, to))
+    };
+    let c_with = |from: &str, to: &str| {
+        assert!(header.contains(from), "{from:?} not in the header");
+        parse_header(&header.replace(from, to))
+    };
+    // C# side: a missing import, a lost parameter, a wrong type, swapped fields, an enum value.
+    let up = "public static extern PlxStatus plx_scene_up(";
+    expect(
+        &c,
+        &cs_with(up, "public static extern PlxStatus plx_scene_upp("),
+        "plx_scene_up: no DllImport",
+    );
+    expect(
+        &c,
+        &cs_with(up, "public static extern PlxStatus plx_scene_upp("),
+        "plx_scene_upp: imported in C# but not",
+    );
+    let clip = "plx_scene_set_clip(SceneHandle scene, float near, float far)";
+    expect(
+        &c,
+        &cs_with(clip, "plx_scene_set_clip(SceneHandle scene, float near)"),
+        "plx_scene_set_clip: 3 parameters in C, 2 in C#",
+    );
+    expect(
+        &c,
+        &cs_with(
+            clip,
+            "plx_scene_set_clip(SceneHandle scene, double near, float far)",
+        ),
+        "plx_scene_set_clip: C `float near`",
+    );
+    expect(
+        &c,
+        &cs_with(
+            "public float Fx;\n        public float Fy;",
+            "public float Fy;\n        public float Fx;",
+        ),
+        "struct plx_camera",
+    );
+    expect(
+        &c,
+        &cs_with("Cancelled = 12,", "Cancelled = 13,"),
+        "enum plx_status",
+    );
+    expect(&c, &cs_with("[MarshalAs(UnmanagedType.ByValArray, SizeConst = 3)]\n        public float[] Position;", "[MarshalAs(UnmanagedType.ByValArray, SizeConst = 4)]\n        public float[] Position;"), "struct plx_light");
+    // Header side: a new function, a new parameter, a new field, a new enum value.
+    let status_str = "const char *plx_status_str(uint32_t status);";
+    expect(
+        &c_with(
+            status_str,
+            &format!("{status_str}\nenum plx_status plx_scene_new_thing(struct plx_scene *scene);"),
+        ),
+        &cs,
+        "plx_scene_new_thing: no DllImport",
+    );
+    expect(&c_with("enum plx_status plx_scene_set_clip(struct plx_scene *scene, float near, float far);", "enum plx_status plx_scene_set_clip(struct plx_scene *scene, float near, float far, uint32_t flags);"), &cs, "plx_scene_set_clip: 4 parameters in C, 3 in C#");
+    expect(
+        &c_with(
+            "  float cy;\n} plx_camera;",
+            "  float cy;\n  float skew;\n} plx_camera;",
+        ),
+        &cs,
+        "struct plx_camera",
+    );
+    expect(
+        &c_with(
+            "  PLX_STATUS_CANCELLED = 12,\n",
+            "  PLX_STATUS_CANCELLED = 12,\n  PLX_STATUS_BUSY = 13,\n",
+        ),
+        &cs,
+        "enum plx_status",
+    );
+    // And the parameter rules: a pointer is never a plain value.
     let float_ptr = c_decl("float *out");
-    assert!(compatible(&scene, &cs_param("SceneHandle scene"), &c).is_ok());
+    assert!(compatible(
+        &c_decl("struct plx_scene *scene"),
+        &cs_param("SceneHandle scene"),
+        &c
+    )
+    .is_ok());
     assert!(compatible(&float_ptr, &cs_param("float out"), &c).is_err());
     assert!(compatible(&float_ptr, &cs_param("[Out] float[] out"), &c).is_ok());
+    assert!(compatible(&float_ptr, &cs_param("out float out"), &c).is_ok());
+    assert!(compatible(&float_ptr, &cs_param("out double out"), &c).is_err());
 }
 
 #[test]
@@ -1036,6 +1106,34 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
         "{unchanged} of {} far pixels unchanged",
         far.len()
     );
+
+    // The rest of the API, once each through the wrapper (EveryOtherCall in the example).
+    let cam: Vec<f64> = v["camera"].split(',').map(|x| x.parse().unwrap()).collect();
+    assert!((cam[0] - truth.focal_px).abs() < 1e-3, "{stdout}");
+    assert_eq!((cam[1], cam[2]), (w as f64 / 2.0, h as f64 / 2.0));
+    assert_eq!(v["clip"], "0.25,20");
+    let range: Vec<f64> = v["depth_buffer_range"]
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!(
+        0.0 <= range[0] && range[0] < range[1] && range[1] <= 1.0,
+        "{stdout}"
+    );
+    assert_eq!(v["confidence_size"], format!("{w}x{h}"));
+    assert_eq!(v["mesh_step2_smaller"], "1");
+    assert_eq!(number(&v, "fast_disparity_size") as usize, w);
+    assert!(dist(vec3(&v, "place_translation"), hit) < 0.01, "{stdout}");
+    assert!(
+        dist(vec3(&v, "place_on_ray_translation"), hit) < 0.01,
+        "{stdout}"
+    );
+    assert_eq!(v["memory_artefact_world_min"], "0,-0.25,-2.5");
+    assert_eq!(v["sh9_set"], "0.25,0.5,0.75");
+    assert_eq!(v["host_depth"], "2");
+    assert_eq!(v["host_depth_stereo_skipped"], "1");
+    assert_eq!(v["host_camera_fx"], "20");
+    assert!(v["error_pixel_cap"].starts_with("TooLarge: "), "{stdout}");
 
     // Failures are ParallaxExceptions carrying the status and the library's message.
     let missing = dir.path().join("missing.png");

@@ -118,6 +118,8 @@ static class Program
                 Print("host_lights", mine.Length + ":" + Vec(mine[0].Direction, 0, 3) + ":" + mine[0].Size.ToString("R", C));
                 scene.ResetLights();
 
+                EveryOtherCall(scene, args[2], x, y, w, h);
+
                 // Failures arrive as ParallaxException with the status and the library's message.
                 Expect("error_missing_file", () => scene.LoadStereoPair(Path.Combine(args[7], "missing.png"), args[1]));
                 Expect("error_unknown_artefact", () => scene.RemoveArtefact(9999));
@@ -182,6 +184,92 @@ static class Program
         Print("unity_event_max_diff", maxDiff);
         status = UnityRenderEvents.LastStatus(eventId + 1, out runs);
         Print("unity_unregistered", status + ":" + runs + ":" + UnityRenderEvents.LastMessage(eventId + 1));
+    }
+
+    // The rest of the API through the wrapper, once each, so that every declaration's marshalling
+    // runs: camera, clip, depth buffer, confidence, mesh and stereo options, placement, artefacts
+    // from memory, flags, SH9, environment, host depth, the context's pixel cap.
+    static void EveryOtherCall(Scene scene, string glb, float x, float y, int w, int h)
+    {
+        CameraInfo cam = scene.Camera();
+        Print("camera", cam.Intrinsics.Fx.ToString("R", C) + "," + cam.Intrinsics.Cx.ToString("R", C) + "," + cam.Intrinsics.Cy.ToString("R", C));
+        scene.SetClip(0.25f, 20);
+        cam = scene.Camera();
+        Print("clip", cam.Near.ToString("R", C) + "," + cam.Far.ToString("R", C));
+        FloatGrid gl = scene.DepthBuffer(PlxDepthEncoding.OpenglWindow);
+        float lo = float.MaxValue, hi = float.MinValue;
+        foreach (float d in gl.Data) { lo = Math.Min(lo, d); hi = Math.Max(hi, d); }
+        Print("depth_buffer_range", lo.ToString("R", C) + "," + hi.ToString("R", C));
+        scene.SetClip(0, 0);
+        FloatGrid confidence = scene.Confidence();
+        Print("confidence_size", confidence.Width + "x" + confidence.Height);
+
+        int full = scene.Mesh().TriangleCount;
+        PlxMeshOptions mo = PlxMeshOptions.CreateDefault();
+        mo.Step = 2;
+        scene.SetMeshOptions(mo);
+        int coarse = scene.Mesh().TriangleCount;
+        scene.ResetMeshOptions();
+        Print("mesh_step2_smaller", coarse < full && coarse > 0 ? 1 : 0);
+        PlxStereoOptions so = PlxStereoOptions.CreateDefault();
+        so.Preset = (uint)PlxStereoPreset.Fast;
+        scene.SetStereoOptions(so);
+        Print("fast_disparity_size", scene.Disparity().Width);
+        scene.ResetStereoOptions();
+
+        PlxHit hit = scene.Pick(x, y);
+        float[] placed = scene.Place(x, y, 0.3f);
+        Print("place_translation", Vec(placed, 12, 3));
+        float[] onRay = scene.PlaceOnRay(new float[] { 0, 0, 0 }, hit.Point, 0.3f);
+        Print("place_on_ray_translation", Vec(onRay, 12, 3));
+
+        uint id = scene.AddArtefactMemory(File.ReadAllBytes(glb));
+        float[] t = { 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0.5f, -0.25f, -2, 1 };
+        scene.SetArtefactTransform(id, t);
+        Bounds b = scene.ArtefactBounds(id);
+        Print("memory_artefact_world_min", Vec(b.WorldMin, 0, 3));
+        scene.SetArtefactFlags(id, false, false, false);
+        scene.RemoveArtefact(id);
+
+        float[] sh = new float[27];
+        sh[0] = 0.25f; sh[1] = 0.5f; sh[2] = 0.75f;
+        scene.SetSh9(sh);
+        Print("sh9_set", Vec(scene.Sh9(), 0, 3));
+        scene.SetSh9(null);
+        byte[] env = new byte[16 * 8 * 3];
+        for (int i = 0; i < env.Length; i++) env[i] = 128;
+        scene.SetEnvironmentEquirect(env, 16, 8, PlxPixelFormat.Rgb8);
+        scene.ResetEnvironment();
+
+        // Host depth: a stereo pair of one grey and a wall 2 m away; no stereo runs.
+        using (Context context = new Context())
+        using (Scene host = new Scene(context))
+        {
+            byte[] grey = new byte[16 * 8 * 4];
+            for (int i = 0; i < grey.Length; i++) grey[i] = 100;
+            host.SetStereoPair(grey, grey, 16, 8, PlxPixelFormat.Bgra8);
+            float[] depth = new float[16 * 8];
+            for (int i = 0; i < depth.Length; i++) depth[i] = 2;
+            PlxCamera camera;
+            camera.Fx = camera.Fy = 20;
+            camera.Cx = 8;
+            camera.Cy = 4;
+            host.SetDepth(depth, 16, 8, null, camera);
+            Print("host_depth", host.Depth()[3, 3].ToString("R", C));
+            Print("host_depth_stereo_skipped", host.Report().Contains("host depth given") ? 1 : 0);
+            Print("host_camera_fx", host.Camera().Intrinsics.Fx.ToString("R", C));
+            host.ClearDepth();
+            PlxCalibration cal = new PlxCalibration();
+            cal.FocalPx = 20;
+            cal.BaselineM = 0.1;
+            cal.Cx = 8;
+            cal.Cy = 4;
+            host.SetCalibration(cal);
+        }
+        // The context's pixel cap.
+        using (Context small = new Context(1000, null))
+        using (Scene capped = new Scene(small))
+            Expect("error_pixel_cap", () => capped.SetStereoPair(new byte[w * h * 4], new byte[w * h * 4], w, h, PlxPixelFormat.Rgba8));
     }
 
     static void Expect(string key, Action action)
