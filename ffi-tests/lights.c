@@ -1,5 +1,7 @@
 /* The host's lighting replaces the estimates: lights, SH9 and an environment map, with every
  * validation error named, and the values read back exactly. */
+#include <stdlib.h>
+
 #include "check.h"
 
 int main(void) {
@@ -94,6 +96,30 @@ int main(void) {
     CHECK_STATUS(scene, plx_scene_set_environment_equirect(scene, &image), PLX_STATUS_OK);
     CHECK_STATUS(scene, plx_scene_sh9(scene, sh_back), PLX_STATUS_OK);
     for (int i = 0; i < 27; i++) CHECK(sh_back[i] == sh_back[i] && sh_back[i] < 1e6f && sh_back[i] > -1e6f);
+    /* The cube of a constant map is that constant on every face, in any float layout. */
+    for (int i = 0; i < 8 * 16 * 3; i++) env[i] = 0.5f;
+    CHECK_STATUS(scene, plx_scene_set_environment_equirect(scene, &image), PLX_STATUS_OK);
+    uint32_t face_size = 0;
+    CHECK_STATUS(scene, plx_scene_environment_cube_size(scene, &face_size), PLX_STATUS_OK);
+    CHECK(face_size >= 4 && face_size <= 1024);
+    float *face = malloc((size_t)face_size * face_size * 4 * sizeof(float));
+    CHECK(face != NULL);
+    plx_image_out face_out = {(uint8_t *)face, face_size, face_size, face_size * 4 * sizeof(float),
+                              PLX_PIXEL_FORMAT_RGBA_F32};
+    for (uint32_t f = 0; f < 6; f++) {
+        CHECK_STATUS(scene, plx_scene_environment_cube_face(scene, f, &face_out), PLX_STATUS_OK);
+        for (uint32_t i = 0; i < face_size * face_size; i++) {
+            CHECK(face[i * 4] > 0.45f && face[i * 4] < 0.55f);
+            CHECK(face[i * 4 + 3] == 1.0f);
+        }
+    }
+    CHECK_STATUS(scene, plx_scene_environment_cube_face(scene, 6, &face_out), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "cube face 6");
+    face_out.width = face_size + 1;
+    CHECK_STATUS(scene, plx_scene_environment_cube_face(scene, 0, &face_out), PLX_STATUS_SIZE_MISMATCH);
+    CHECK_STATUS(scene, plx_scene_environment_cube_face(scene, 0, NULL), PLX_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(scene, plx_scene_environment_cube_size(scene, NULL), PLX_STATUS_NULL_ARGUMENT);
+    free(face);
     CHECK_STATUS(scene, plx_scene_set_environment_equirect(scene, NULL), PLX_STATUS_OK);
 
     plx_scene_free(scene);

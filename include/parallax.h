@@ -779,6 +779,30 @@ enum plx_status plx_scene_main_light(struct plx_scene *scene, float *direction, 
 // `scene` is a live scene; `out` points to 27 writable floats.
 enum plx_status plx_scene_sh9(struct plx_scene *scene, float *out);
 
+// Edge length in texels of each face of the environment cube that `plx_scene_environment_cube_face`
+// writes. Errors as `plx_scene_lights` (the environment is estimated from the photo unless the
+// host gave one).
+//
+// # Safety
+// `scene` is a live scene; `size` is writable.
+enum plx_status plx_scene_environment_cube_size(struct plx_scene *scene, uint32_t *size);
+
+// Writes face `face` of the environment cube (linear radiance relative to the photo's white, in
+// the left camera's frame) into `out`, a square image of `plx_scene_environment_cube_size`
+// texels in any `plx_pixel_format` (`PLX_PIXEL_FORMAT_RGBA_F16` for a GPU's RGBA16F cube; alpha
+// 1; 8-bit formats clip at 1 and are sRGB-encoded). Faces in GPU array-layer order: 0 +X, 1 −X,
+// 2 +Y, 3 −Y, 4 +Z, 5 −Z, each oriented as Vulkan, D3D and WebGPU sample cube maps (row 0 at
+// the top of the face). The host's map (`plx_scene_set_environment_equirect`) when given, else
+// the estimate. Errors: `NULL_ARGUMENT`; `INVALID_ARGUMENT` (face > 5, unknown format, short
+// stride); `SIZE_MISMATCH` (`out` is not the face's size); as `plx_scene_lights`. On error `out`
+// is untouched.
+//
+// # Safety
+// `scene` is a live scene; `out` points to a valid descriptor of writable memory.
+enum plx_status plx_scene_environment_cube_face(struct plx_scene *scene,
+                                                uint32_t face,
+                                                const struct plx_image_out *out);
+
 // Sets the process-wide log callback (`NULL` = no logging, the default), its `user_data` (passed
 // back unchanged as the first argument) and the most detailed level it wants (`max_level`, a
 // `plx_log_level`: e.g. `PLX_LOG_LEVEL_WARN` gives errors and warnings). Replaces the previous

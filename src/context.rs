@@ -29,6 +29,9 @@ pub struct Context {
     gpu: Mutex<Option<Arc<crate::render::GpuContext>>>,
     #[cfg(not(feature = "gpu"))]
     gpu: Mutex<()>,
+    /// The renderer's pipelines, compiled once per device and shared by every scene.
+    #[cfg(all(feature = "gpu", feature = "gltf"))]
+    renderer: Mutex<Option<Arc<crate::render::Renderer>>>,
 }
 
 impl Context {
@@ -43,6 +46,8 @@ impl Context {
         Ok(Context {
             options,
             gpu: Mutex::default(),
+            #[cfg(all(feature = "gpu", feature = "gltf"))]
+            renderer: Mutex::default(),
         })
     }
 
@@ -77,6 +82,26 @@ impl Context {
         )?);
         *slot = Some(Arc::clone(&gpu));
         Ok(gpu)
+    }
+
+    /// The renderer on [`Context::gpu`], its shaders and pipelines compiled on the first call and
+    /// shared afterwards (by every scene of the context, on any thread). The flag says whether
+    /// this call compiled them. A failure is not cached.
+    ///
+    /// # Errors
+    /// As [`Context::gpu`] and [`crate::render::Renderer::new`].
+    #[cfg(all(feature = "gpu", feature = "gltf"))]
+    pub fn renderer(&self) -> Result<(Arc<crate::render::Renderer>, bool)> {
+        let mut slot = self
+            .renderer
+            .lock()
+            .map_err(|_| Error::Internal("renderer lock poisoned by an earlier panic".into()))?;
+        if let Some(renderer) = slot.as_ref() {
+            return Ok((Arc::clone(renderer), false));
+        }
+        let renderer = Arc::new(crate::render::Renderer::new(&*self.gpu()?)?);
+        *slot = Some(Arc::clone(&renderer));
+        Ok((renderer, true))
     }
 
     /// Whether the GPU has been opened (for tests and traces: creating a context must not open it).

@@ -233,3 +233,20 @@ fn rust_reference(truth: &hosts_common::Synthetic) -> (f64, f64) {
     let z = *scene.depth().unwrap().get(w / 2, h / 2) as f64;
     (d, z)
 }
+
+/// `tests/cpp/wrapper.cpp`: the wrapper's lighting, image, composite and Unity functions, and its
+/// exceptions, on an in-memory scene without artefacts (no GPU, so it runs under valgrind).
+#[test]
+fn cpp_wrapper_functions_behave_like_the_c_api() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let exe = dir.path().join("wrapper");
+    compile_cpp(&[&root().join("tests/cpp/wrapper.cpp")], &exe);
+    let out = run(&exe, &[], true);
+    assert!(
+        out.status.success(),
+        "tests/cpp/wrapper.cpp failed ({}):\n{}{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

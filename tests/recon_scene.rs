@@ -7,7 +7,7 @@ use parallax::camera::Camera;
 use parallax::image::Raster;
 use parallax::mesh::{
     detect_surfaces, pick, place, place_on_ray, Bvh, MeshOptions, PlaceOptions, Ray, SceneMesh,
-    SurfaceKind, SurfaceOptions, Surfaces, UpSource,
+    SurfaceKind, SurfaceOptions, Surfaces, UpSource, PLACE_SEARCH_RADIUS_PX,
 };
 
 const FLOOR_Y: f32 = -1.4;
@@ -402,6 +402,76 @@ fn placement_from_a_host_ray_and_with_model_bounds() {
     assert!((bottom - p.base).length() < 1e-4);
     let top = p.transform.transform_point3(Vec3::new(0.0, 6.0, 0.0));
     assert!(((top - bottom).length() - 0.8).abs() < 1e-4);
+}
+
+#[test]
+fn placement_trusts_the_detected_plane_over_a_noisy_vertex_normal() {
+    let room = room(320, 240, 280.0);
+    let clean = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
+    let surfaces = surfaces_of(&room, &clean);
+    // Every vertex normal tilted 40° (as noisy stereo normals can be): beyond the 20° that
+    // `Orientation::Auto` accepts as horizontal, and beyond the snap's normal agreement.
+    let mut noisy = clean.clone();
+    let tilt = glam::Quat::from_rotation_z(40f32.to_radians());
+    for n in &mut noisy.normals {
+        *n = (tilt * Vec3::from(*n)).to_array();
+    }
+    let bvh = Bvh::new(&noisy);
+    let spot = room.to_camera * Vec3::new(0.2, TABLE_Y, -2.5);
+    let pixel = room.camera.project(spot).unwrap().0;
+    let p = place(
+        &bvh,
+        &room.camera,
+        &surfaces,
+        pixel,
+        0.3,
+        0.0,
+        &PlaceOptions::default(),
+    )
+    .unwrap();
+    assert!(p.surface.is_some(), "not snapped to the table plane");
+    let up_err = p.up.angle_between(room.up()).to_degrees();
+    assert!(up_err < 3.0, "placed {up_err}° off gravity");
+    assert!((p.base - spot).length() < 0.01 * p.base.length());
+}
+
+#[test]
+fn a_pixel_in_a_narrow_crack_places_on_the_surface_beside_it() {
+    let room = room(320, 240, 280.0);
+    let to_world = room.to_camera.transpose();
+    let spot = room.to_camera * Vec3::new(0.2, TABLE_Y, -2.5);
+    let pixel = room.camera.project(spot).unwrap().0;
+    // A crack three pixels wide through the table top, centred on the pixel.
+    let mut depth = room.depth.clone();
+    let cx = pixel.x as usize;
+    for y in 0..depth.height() {
+        for x in cx - 1..=cx + 1 {
+            *depth.get_mut(x, y) = f32::NAN;
+        }
+    }
+    let mesh = SceneMesh::from_depth(&depth, &room.camera, &MeshOptions::default()).unwrap();
+    let surfaces = surfaces_of(&room, &mesh);
+    let bvh = Bvh::new(&mesh);
+    assert!(pick(&bvh, &room.camera, pixel).is_none());
+    let p = place(
+        &bvh,
+        &room.camera,
+        &surfaces,
+        pixel,
+        0.3,
+        0.0,
+        &PlaceOptions::default(),
+    )
+    .unwrap();
+    let distance = p.base.length();
+    assert!(((to_world * p.base).y - TABLE_Y).abs() < 0.01 * distance);
+    // Within the search radius of the clicked point (a few pixels at this distance).
+    let reach = distance * (PLACE_SEARCH_RADIUS_PX as f32 + 1.0) / 280.0;
+    assert!(
+        (p.base - spot).length() < reach,
+        "{} m",
+        (p.base - spot).length()
+    );
 }
 
 #[test]

@@ -502,6 +502,24 @@ public:
     }
     /// Back to the estimated environment.
     void reset_environment() { check(plx_scene_set_environment_equirect(handle_, nullptr)); }
+    /// Edge length in texels of each environment cube face.
+    uint32_t environment_cube_size() {
+        uint32_t size = 0;
+        check(plx_scene_environment_cube_size(handle_, &size));
+        return size;
+    }
+    /// Writes cube face `face` (0 +X, 1 −X, 2 +Y, 3 −Y, 4 +Z, 5 −Z) into the host's image.
+    void environment_cube_face(uint32_t face, const plx_image_out& out) {
+        check(plx_scene_environment_cube_face(handle_, face, &out));
+    }
+    /// Cube face `face` in a new image of `format` (RGBA_F16 for a GPU's RGBA16F cube).
+    Image environment_cube_face(uint32_t face,
+                                plx_pixel_format format = PLX_PIXEL_FORMAT_RGBA_F16) {
+        const uint32_t size = environment_cube_size();
+        Image image = Image::allocate(size, size, format);
+        environment_cube_face(face, image.out());
+        return image;
+    }
     /// The JSON report of the last call that computed or fetched a product.
     std::string report() {
         return detail::read_string([&](char* buf, size_t len, size_t* needed) {

@@ -3,9 +3,10 @@
 
 use super::boundary::{invalid, null_argument, CallError};
 use super::image::{plx_image, view};
+use super::image_io::{plx_image_out, write_linear};
 use super::scene::{plx_scene, with_scene};
 use crate::error::Status;
-use crate::light::{Light, LightKind, Sh9};
+use crate::light::{Light, LightKind, Sh9, CUBE_FACES};
 use crate::scene::MAX_LIGHTS;
 
 /// Kinds of `plx_light::kind`.
@@ -266,5 +267,71 @@ pub unsafe extern "C" fn plx_scene_sh9(scene: *mut plx_scene, out: *mut f32) -> 
         let values = scene.sh9()?.to_array();
         std::ptr::copy_nonoverlapping(values.as_ptr(), out, 27);
         Ok(())
+    })
+}
+
+/// Edge length in texels of each face of the environment cube that `plx_scene_environment_cube_face`
+/// writes. Errors as `plx_scene_lights` (the environment is estimated from the photo unless the
+/// host gave one).
+///
+/// # Safety
+/// `scene` is a live scene; `size` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_environment_cube_size(
+    scene: *mut plx_scene,
+    size: *mut u32,
+) -> Status {
+    with_scene(scene, |scene| {
+        if size.is_null() {
+            return Err(null_argument("size"));
+        }
+        let environment = scene.environment()?;
+        *size = environment.cube.levels.first().map_or(0, |l| l.size);
+        Ok(())
+    })
+}
+
+/// Writes face `face` of the environment cube (linear radiance relative to the photo's white, in
+/// the left camera's frame) into `out`, a square image of `plx_scene_environment_cube_size`
+/// texels in any `plx_pixel_format` (`PLX_PIXEL_FORMAT_RGBA_F16` for a GPU's RGBA16F cube; alpha
+/// 1; 8-bit formats clip at 1 and are sRGB-encoded). Faces in GPU array-layer order: 0 +X, 1 −X,
+/// 2 +Y, 3 −Y, 4 +Z, 5 −Z, each oriented as Vulkan, D3D and WebGPU sample cube maps (row 0 at
+/// the top of the face). The host's map (`plx_scene_set_environment_equirect`) when given, else
+/// the estimate. Errors: `NULL_ARGUMENT`; `INVALID_ARGUMENT` (face > 5, unknown format, short
+/// stride); `SIZE_MISMATCH` (`out` is not the face's size); as `plx_scene_lights`. On error `out`
+/// is untouched.
+///
+/// # Safety
+/// `scene` is a live scene; `out` points to a valid descriptor of writable memory.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_environment_cube_face(
+    scene: *mut plx_scene,
+    face: u32,
+    out: *const plx_image_out,
+) -> Status {
+    with_scene(scene, |scene| {
+        if out.is_null() {
+            return Err(null_argument("out"));
+        }
+        if face as usize >= CUBE_FACES {
+            return Err(invalid(format!(
+                "cube face {face} does not exist (0 +X, 1 −X, 2 +Y, 3 −Y, 4 +Z, 5 −Z)"
+            )));
+        }
+        let environment = scene.environment()?;
+        let level = environment
+            .cube
+            .levels
+            .first()
+            .ok_or_else(|| invalid("the environment cube has no level"))?;
+        let n = level.size as usize;
+        let texels = level
+            .texels
+            .get(face as usize * n * n..(face as usize + 1) * n * n)
+            .ok_or_else(|| invalid("the environment cube is shorter than six faces"))?;
+        write_linear(out, "out", level.size, level.size, |x, y| {
+            let [r, g, b] = texels[y * n + x];
+            [r, g, b, 1.0]
+        })
     })
 }

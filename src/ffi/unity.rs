@@ -304,3 +304,123 @@ pub extern "C" fn plx_unity_interfaces_get() -> *const plx_unity_interfaces {
     catch_unwind(|| with_plugin(|p| p.interfaces as *const plx_unity_interfaces))
         .unwrap_or(std::ptr::null())
 }
+
+#[cfg(all(test, feature = "gpu", feature = "gltf"))]
+mod tests {
+    use super::*;
+    use crate::ffi::artefact::plx_scene_add_artefact_memory;
+    use crate::ffi::context::{plx_context, plx_context_free, plx_context_new};
+    use crate::ffi::image::plx_image;
+    use crate::ffi::scene::{
+        plx_calibration, plx_scene_free, plx_scene_new, plx_scene_set_calibration,
+        plx_scene_set_stereo_pair,
+    };
+
+    /// A textured wall 1 m away (disparity 6 px at f = 60 px, B = 0.1 m), as a grey stereo pair.
+    fn wall(w: u32, h: u32) -> (Vec<u8>, Vec<u8>) {
+        let texture = |x: i64, y: i64| -> u8 {
+            let mut v = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) as u64;
+            v ^= v >> 13;
+            v = v.wrapping_mul(0x5bd1_e995);
+            (v >> 24) as u8
+        };
+        let make = |offset: i64| -> Vec<u8> {
+            (0..h as i64)
+                .flat_map(|y| (0..w as i64).map(move |x| texture(x + offset, y)))
+                .collect()
+        };
+        (make(0), make(6))
+    }
+
+    /// Unity's render thread runs the event of a scene with a box in it: the composite and the
+    /// mask land in the host's buffers through the GPU renderer.
+    #[test]
+    fn render_event_draws_an_artefact_into_the_hosts_buffer_on_another_thread() {
+        const W: u32 = 96;
+        const H: u32 = 48;
+        unsafe {
+            let mut ctx: *mut plx_context = std::ptr::null_mut();
+            assert_eq!(plx_context_new(std::ptr::null(), &mut ctx), Status::Ok);
+            let mut scene: *mut plx_scene = std::ptr::null_mut();
+            assert_eq!(plx_scene_new(ctx, &mut scene), Status::Ok);
+            let (l, r) = wall(W, H);
+            let image = |data: &[u8]| plx_image {
+                data: data.as_ptr(),
+                width: W,
+                height: H,
+                stride: W as usize,
+                format: crate::ffi::image::plx_pixel_format::Gray8 as u32,
+            };
+            assert_eq!(
+                plx_scene_set_stereo_pair(scene, &image(&l), &image(&r)),
+                Status::Ok
+            );
+            let calibration = plx_calibration {
+                focal_px: 60.0,
+                cx: W as f64 / 2.0,
+                cy: H as f64 / 2.0,
+                baseline_m: 0.1,
+                doffs: 0.0,
+                max_disparity: 16,
+            };
+            assert_eq!(plx_scene_set_calibration(scene, &calibration), Status::Ok);
+            // A 0.2 m box 0.6 m in front of the camera, covering the centre.
+            let glb = crate::artefact::builtin_glb("box").unwrap();
+            let transform =
+                glam::Mat4::from_translation(glam::Vec3::new(0.0, -0.1, -0.6)).to_cols_array();
+            let mut id = 0;
+            assert_eq!(
+                plx_scene_add_artefact_memory(
+                    scene,
+                    glb.as_ptr(),
+                    glb.len(),
+                    transform.as_ptr(),
+                    &mut id
+                ),
+                Status::Ok
+            );
+
+            let mut rgba = vec![0u8; (W * H * 4) as usize];
+            let mut mask = vec![0u8; (W * H) as usize];
+            let out = plx_image_out {
+                data: rgba.as_mut_ptr(),
+                width: W,
+                height: H,
+                stride: W as usize * 4,
+                format: crate::ffi::image::plx_pixel_format::Rgba8 as u32,
+            };
+            let mask_out = plx_image_out {
+                data: mask.as_mut_ptr(),
+                width: W,
+                height: H,
+                stride: W as usize,
+                format: crate::ffi::image::plx_pixel_format::Gray8 as u32,
+            };
+            UnityPluginLoad(std::ptr::null_mut());
+            assert_eq!(
+                plx_unity_set_render_target(11, scene, std::ptr::null(), &out, &mask_out),
+                Status::Ok
+            );
+            let event = GetRenderEventFunc().unwrap();
+            std::thread::spawn(move || event(11)).join().unwrap();
+            let mut runs = 0;
+            let status = plx_unity_last_event_status(11, &mut runs);
+            let mut msg = [0 as c_char; 256];
+            plx_unity_last_event_message(11, msg.as_mut_ptr(), msg.len(), std::ptr::null_mut());
+            let msg = std::ffi::CStr::from_ptr(msg.as_ptr()).to_string_lossy();
+            assert_eq!((status, runs), (Status::Ok, 1), "{msg}");
+            UnityPluginUnload();
+
+            let centre = ((H / 2) * W + W / 2) as usize;
+            assert_eq!(mask[centre], 255, "the box covers the centre");
+            assert_eq!(mask[0], 0, "and not the corner");
+            // The blue box, not the grey wall texture, at the centre; opaque everywhere.
+            let px = &rgba[centre * 4..centre * 4 + 4];
+            assert!(px[2] > px[0] + 10, "centre {px:?}");
+            assert!(rgba.chunks_exact(4).all(|p| p[3] == 255));
+
+            plx_scene_free(scene);
+            plx_context_free(ctx);
+        }
+    }
+}

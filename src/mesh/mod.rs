@@ -21,7 +21,9 @@ pub mod surfaces;
 
 pub use bvh::{pick, Bvh, Hit, Ray};
 pub use grid::MeshOptions;
-pub use place::{place, place_on_ray, Orientation, PlaceOptions, Placement};
+pub use place::{
+    place, place_on_ray, Orientation, PlaceOptions, Placement, PLACE_SEARCH_RADIUS_PX,
+};
 pub use surfaces::{
     detect_surfaces, SupportSurface, SurfaceKind, SurfaceOptions, Surfaces, UpSource,
 };

@@ -72,11 +72,13 @@ pub struct Placement {
 }
 
 /// Places an object of largest size `size_m` metres, turned by `yaw_rad` about its up axis (0 =
-/// its front faces the camera), on the surface seen at image position `pixel`.
+/// its front faces the camera), on the surface seen at image position `pixel`, or, where that
+/// pixel falls into a crack of the mesh, at the nearest pixel within
+/// [`PLACE_SEARCH_RADIUS_PX`] that shows a surface.
 ///
 /// # Errors
 /// `InvalidArgument` for a size that is not finite and > 0, a non-finite yaw or pixel, bad
-/// options, or a pixel with no surface under it (a hole in the depth).
+/// options, or no surface at or near the pixel (a hole in the depth).
 pub fn place(
     bvh: &Bvh,
     camera: &Camera,
@@ -92,15 +94,38 @@ pub fn place(
             pixel.x, pixel.y
         )));
     }
-    let ray = camera_ray(camera, pixel);
-    place_on_ray(bvh, surfaces, &ray, size_m, yaw_rad, options).map_err(|e| match e {
-        Error::InvalidArgument(m) if m.contains("hits no surface") => Error::invalid(format!(
-            "place: no scene surface at pixel ({}, {}) (no depth there)",
+    // A click that lands in a crack of the mesh (a cut at a depth discontinuity, a pixel without
+    // depth) means the surface next to it: try the nearest pixels within the search radius,
+    // nearest first, before giving up.
+    let r = PLACE_SEARCH_RADIUS_PX as i32;
+    let mut offsets: Vec<(i32, i32)> = (-r..=r)
+        .flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)))
+        .filter(|(dx, dy)| dx * dx + dy * dy <= r * r)
+        .collect();
+    offsets.sort_by_key(|(dx, dy)| dx * dx + dy * dy);
+    let hit_pixel = offsets
+        .iter()
+        .map(|&(dx, dy)| pixel + Vec2::new(dx as f32, dy as f32))
+        .find(|p| bvh.closest_hit(&camera_ray(camera, *p)).is_some());
+    let Some(hit_pixel) = hit_pixel else {
+        return Err(Error::invalid(format!(
+            "place: no scene surface at pixel ({}, {}) or within {PLACE_SEARCH_RADIUS_PX} px of \
+             it (no depth there)",
             pixel.x, pixel.y
-        )),
-        other => other,
-    })
+        )));
+    };
+    place_on_ray(
+        bvh,
+        surfaces,
+        &camera_ray(camera, hit_pixel),
+        size_m,
+        yaw_rad,
+        options,
+    )
 }
+
+/// How far (pixels) [`place`] looks around a pixel that shows no surface for one that does.
+pub const PLACE_SEARCH_RADIUS_PX: u32 = 4;
 
 /// [`place`] for a host's own ray (e.g. from a controller or a gaze), in the camera (= world)
 /// frame. With `yaw_rad = 0` the object's front faces back along the ray.
@@ -143,7 +168,10 @@ pub fn place_on_ray(
         .closest_hit(ray)
         .ok_or_else(|| Error::invalid("place: the ray hits no surface of the scene"))?;
 
-    // Snap onto the detected plane under the hit, if one agrees.
+    // Snap onto the detected plane under the hit, if one agrees: the hit lies on the plane and
+    // either inside its extent or with a normal like the plane's. A plane fitted to thousands of
+    // points knows its orientation better than the noisy normal of one stereo vertex, so inside
+    // the extent the vertex normal is not asked.
     let dir = ray.direction.normalize();
     let distance = (hit.point - ray.origin).length();
     let cos20 = 20f32.to_radians().cos();
@@ -153,7 +181,7 @@ pub fn place_on_ray(
         .enumerate()
         .filter(|(_, s)| {
             s.distance(hit.point).abs() <= options.snap_tolerance * distance
-                && s.normal.dot(hit.normal) >= cos20
+                && (s.normal.dot(hit.normal) >= cos20 || s.contains_point(hit.point))
         })
         .min_by(|a, b| {
             a.1.distance(hit.point)

@@ -157,6 +157,15 @@ impl SupportSurface {
     pub fn contains_pixel(&self, pixel: Vec2) -> bool {
         point_in_polygon(pixel, &self.polygon_image)
     }
+
+    /// Whether the foot of `p` on the plane lies inside the extent polygon.
+    pub fn contains_point(&self, p: Vec3) -> bool {
+        let u = self.normal.any_orthonormal_vector();
+        let v = self.normal.cross(u);
+        let on_plane = |q: Vec3| Vec2::new((q - self.centroid).dot(u), (q - self.centroid).dot(v));
+        let polygon: Vec<Vec2> = self.polygon.iter().map(|&q| on_plane(q)).collect();
+        point_in_polygon(on_plane(p), &polygon)
+    }
 }
 
 /// The surfaces found, largest first, and the gravity "up".

@@ -1,7 +1,10 @@
 //! The renderer against the reference path tracer on a built-in scene, with TRUE depth and TRUE
 //! lights: separates the renderer's own error from the estimation stages'. `parallax eval
-//! composite` calls [`compare_with_reference`].
+//! composite` renders the truth once ([`render_truth`]), measures the renderer with the true
+//! inputs ([`compare_true_inputs`]) and the whole pipeline on the same photo
+//! ([`ReferenceTruth::errors`]).
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{Mat4, Vec3, Vec4};
@@ -9,8 +12,8 @@ use glam::{Mat4, Vec3, Vec4};
 use super::options::{Composite, RenderInputs, RenderOptions};
 use super::renderer::Renderer;
 use super::shapes::{cube, sphere};
-use crate::artefact::{ArtefactSet, Material};
-use crate::camera::Camera;
+use crate::artefact::{Artefact, ArtefactSet, Material};
+use crate::camera::{Camera, StereoCalibration};
 use crate::error::{Error, Result};
 use crate::image::Raster;
 use crate::light::{Light, LightKind, Sh9};
@@ -46,10 +49,45 @@ impl ComparisonSetup {
             configs,
         }
     }
+
+    /// A built-in scene with two inserted shapes: a glossy sphere on the front of its table and
+    /// a diffuse box on the floor behind the table's right edge (partly hidden by it), placed
+    /// clear of the scene's own objects.
+    ///
+    /// # Errors
+    /// `InvalidArgument` for a name that is not a built-in scene.
+    pub fn for_scene(
+        name: &str,
+        width: u32,
+        samples_per_pixel: u32,
+        configs: Vec<RenderOptions>,
+    ) -> Result<Self> {
+        // `room` and `two-lights` have their table at x = 0, `clutter` and `window` at x = 0.2.
+        let (sphere_x, box_x) = match name {
+            "room" | "two-lights" => (0.0, 0.7),
+            "clutter" | "window" => (0.25, 0.95),
+            other => {
+                return Err(Error::invalid(format!(
+                    "no comparison set up for scene {other:?}; built-in scenes: {}",
+                    reference::BUILTIN_SCENES.join(", ")
+                )))
+            }
+        };
+        Ok(ComparisonSetup {
+            scene: name.into(),
+            inserts: vec![
+                ("sphere".into(), [sphere_x, 0.75, -1.55], 1.0),
+                ("box".into(), [box_x, 0.0, -2.3], 1.0),
+            ],
+            width,
+            samples_per_pixel,
+            configs,
+        })
+    }
 }
 
 /// Mean absolute error (linear light, over channels) and PSNR (peak 1) of one region.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct RegionError {
     /// Pixels in the region.
     pub pixels: usize,
@@ -57,6 +95,19 @@ pub struct RegionError {
     pub mae: f64,
     /// PSNR in dB (infinite for an exact match; NaN for an empty region).
     pub psnr: f64,
+}
+
+/// The error of one composite against the ground truth, per region.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RegionErrors {
+    /// Whole image.
+    pub image: RegionError,
+    /// Where the reference shows the inserted objects (coverage > 0.5).
+    pub artefact: RegionError,
+    /// Outside the objects where the reference's ratio drops below 0.95 (their shadows).
+    pub shadow: RegionError,
+    /// Artefact and shadow regions together: every pixel the insertion should change.
+    pub affected: RegionError,
 }
 
 /// One measured configuration.
@@ -70,6 +121,8 @@ pub struct ComparisonRow {
     pub artefact: RegionError,
     /// Outside the objects where the reference's ratio drops below 0.95 (their shadows).
     pub shadow: RegionError,
+    /// Artefact and shadow regions together.
+    pub affected: RegionError,
     /// Wall-clock time of the render call, milliseconds.
     pub render_ms: f64,
 }
@@ -85,6 +138,79 @@ pub struct ComparisonResult {
     pub samples_per_pixel: u32,
     /// Image size.
     pub size: (u32, u32),
+}
+
+/// What the path tracer rendered for one comparison: the ground-truth composite, and the true
+/// inputs (photo, depth, lights, environment) that a renderer may be given instead of estimates.
+#[derive(Debug, Clone)]
+pub struct ReferenceTruth {
+    /// The left view without the inserted objects (the "photo"), linear RGB, unclipped.
+    pub photo: Raster<[f32; 3]>,
+    /// The right view without the objects, linear RGB, when asked for (stereo input); else
+    /// `None`.
+    pub right: Option<Raster<[f32; 3]>>,
+    /// The rig (focal length, principal point, baseline).
+    pub calibration: StereoCalibration,
+    /// True depth of the left view, metres (NaN where no surface).
+    pub depth: Raster<f32>,
+    /// True lights, left camera frame.
+    pub lights: Vec<Light>,
+    /// SH9 of the true environment.
+    pub sh9: Sh9,
+    /// The ground-truth composite, linear RGB.
+    pub composite: Raster<[f32; 3]>,
+    /// Coverage of the inserted objects in the ground truth.
+    pub mask: Raster<f32>,
+    /// Ground-truth ratio composite / photo.
+    pub ratio: Raster<[f32; 3]>,
+    /// The inserted objects as renderer artefacts with their left-camera-frame transforms.
+    pub artefacts: Vec<(Arc<Artefact>, Mat4)>,
+    /// Path tracer's time for the composite (with and without the objects), seconds.
+    pub reference_seconds: f64,
+    /// Samples per pixel of the composite.
+    pub samples_per_pixel: u32,
+}
+
+impl ReferenceTruth {
+    /// Image size (width, height).
+    pub fn size(&self) -> (u32, u32) {
+        (
+            self.composite.width() as u32,
+            self.composite.height() as u32,
+        )
+    }
+
+    /// The error of `ours` against the ground truth per region. `ldr` compares with the truth
+    /// clipped to [0, 1], as a composite made from an 8-bit photo can at best reproduce.
+    pub fn errors(&self, ours: &Raster<[f32; 3]>, ldr: bool) -> RegionErrors {
+        let truth = if ldr {
+            self.composite.map(|c| c.map(|v| v.clamp(0.0, 1.0)))
+        } else {
+            self.composite.clone()
+        };
+        let in_artefact = |x: usize, y: usize| *self.mask.get(x, y) > 0.5;
+        let in_shadow = |x: usize, y: usize| {
+            *self.mask.get(x, y) < 0.01 && self.ratio.get(x, y).iter().sum::<f32>() / 3.0 < 0.95
+        };
+        RegionErrors {
+            image: region_error(ours, &truth, |_, _| true),
+            artefact: region_error(ours, &truth, in_artefact),
+            shadow: region_error(ours, &truth, in_shadow),
+            affected: region_error(ours, &truth, |x, y| in_artefact(x, y) || in_shadow(x, y)),
+        }
+    }
+
+    /// The artefacts as an [`ArtefactSet`].
+    ///
+    /// # Errors
+    /// As [`ArtefactSet::add`].
+    pub fn artefact_set(&self) -> Result<ArtefactSet> {
+        let mut set = ArtefactSet::new();
+        for (a, t) in &self.artefacts {
+            set.add(a.clone(), *t)?;
+        }
+        Ok(set)
+    }
 }
 
 /// A reference light record as a renderer [`Light`] (camera frame).
@@ -168,10 +294,7 @@ pub fn sh9_from_equirect(env: &Raster<[f32; 3]>) -> Sh9 {
 
 /// The renderer's artefact for a reference shape (sphere and box; a texture becomes its mean
 /// colour).
-fn artefact_for(
-    object: &Object,
-    world_to_camera: Mat4,
-) -> Result<(std::sync::Arc<crate::artefact::Artefact>, Mat4)> {
+fn artefact_for(object: &Object, world_to_camera: Mat4) -> Result<(Arc<Artefact>, Mat4)> {
     let m = &object.material;
     let mut base = Vec3::from(m.base_color);
     if let Some(t) = &m.texture {
@@ -227,16 +350,14 @@ fn region_error(
     }
 }
 
-/// Renders the setup's scene with the path tracer (photo, TRUE depth and lights, ground-truth
-/// composite), then with the renderer in every configuration, and measures the error of each.
+/// Renders the setup's scene with the path tracer: the ground-truth composite (with and without
+/// the inserted objects, the same random numbers), TRUE depth, lights and environment, and with
+/// `stereo_views` the right view at the same sample count (the input of a stereo pipeline).
 ///
 /// # Errors
-/// As [`reference::render`], [`reference::render_composite`], [`SceneMesh::from_depth`] and
-/// [`Renderer::render`].
-pub fn compare_with_reference(
-    renderer: &Renderer,
-    setup: &ComparisonSetup,
-) -> Result<ComparisonResult> {
+/// As [`reference::render`] and [`reference::render_composite`]; `Unsupported` for an inserted
+/// shape with no renderer counterpart.
+pub fn render_truth(setup: &ComparisonSetup, stereo_views: bool) -> Result<ReferenceTruth> {
     let scene = reference::builtin(&setup.scene)?;
     let options = reference::RenderOptions {
         width: Some(setup.width),
@@ -248,64 +369,107 @@ pub fn compare_with_reference(
         .iter()
         .map(|(name, p, s)| reference::insert_shape(name, *p, *s, 0.0))
         .collect::<Result<_>>()?;
-    // Depth, lights and environment are exact per pixel centre: one sample is enough for them.
-    let truth_options = reference::RenderOptions {
-        samples: SampleBudget::PerPixel(1),
-        ..options
+    // Depth, lights and environment are exact per pixel centre: one sample is enough for them,
+    // unless the views themselves are wanted.
+    let truth_options = if stereo_views {
+        options
+    } else {
+        reference::RenderOptions {
+            samples: SampleBudget::PerPixel(1),
+            ..options
+        }
     };
     let images = reference::render(&scene, &truth_options)?;
     let truth = reference::render_composite(&scene, &inserted, &options)?;
-    let (w, h) = (
-        truth.composite.width() as u32,
-        truth.composite.height() as u32,
-    );
-    let camera =
-        Camera::from_calibration(&images.calibration, w, h)?.with_clip_from_depth(&images.depth)?;
-    let mesh = SceneMesh::from_depth(&images.depth, &camera, &MeshOptions::default())?;
     let lights = images
         .lights
         .iter()
         .map(light_from_record)
         .collect::<Result<Vec<_>>>()?;
-    let sh = sh9_from_equirect(&images.environment);
     let world_to_camera = Mat4::from_cols_array(&images.camera_to_world).inverse();
-    let mut set = ArtefactSet::new();
-    for o in &inserted {
-        let (a, t) = artefact_for(o, world_to_camera)?;
-        set.add(a, t)?;
-    }
+    let artefacts = inserted
+        .iter()
+        .map(|o| artefact_for(o, world_to_camera))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(ReferenceTruth {
+        photo: truth.background,
+        right: stereo_views.then_some(images.right),
+        calibration: images.calibration,
+        sh9: sh9_from_equirect(&images.environment),
+        depth: images.depth,
+        lights,
+        composite: truth.composite,
+        mask: truth.mask,
+        ratio: truth.ratio,
+        artefacts,
+        reference_seconds: truth.render_seconds,
+        samples_per_pixel: truth.samples_per_pixel,
+    })
+}
+
+/// Renders `truth`'s objects into its photo with TRUE depth (mesh from it), lights and SH9, once
+/// per configuration, and measures each against the ground truth. One untimed render first
+/// takes the device's first-use cost out of the figures.
+///
+/// # Errors
+/// As [`SceneMesh::from_depth`] and [`Renderer::render`].
+pub fn compare_true_inputs(
+    renderer: &Renderer,
+    truth: &ReferenceTruth,
+    configs: &[RenderOptions],
+) -> Result<Vec<ComparisonRow>> {
+    let (w, h) = truth.size();
+    let camera =
+        Camera::from_calibration(&truth.calibration, w, h)?.with_clip_from_depth(&truth.depth)?;
+    let mesh = SceneMesh::from_depth(&truth.depth, &camera, &MeshOptions::default())?;
+    let set = truth.artefact_set()?;
     let inputs = RenderInputs {
-        photo: &truth.background,
+        photo: &truth.photo,
         camera: &camera,
         scene_mesh: Some(&mesh),
         artefacts: &set,
-        lights: &lights,
-        sh9: &sh,
+        lights: &truth.lights,
+        sh9: &truth.sh9,
         specular: None,
         photo_shadow: None,
     };
-    let in_artefact = |x: usize, y: usize| *truth.mask.get(x, y) > 0.5;
-    let in_shadow = |x: usize, y: usize| {
-        *truth.mask.get(x, y) < 0.01 && truth.ratio.get(x, y).iter().sum::<f32>() / 3.0 < 0.95
-    };
+    if let Some(first) = configs.first() {
+        renderer.render(&inputs, first)?;
+    }
     let mut rows = Vec::new();
-    for config in &setup.configs {
+    for config in configs {
         let start = Instant::now();
         let out: Composite = renderer.render(&inputs, config)?;
         let render_ms = start.elapsed().as_secs_f64() * 1e3;
+        let e = truth.errors(&out.composite, false);
         rows.push(ComparisonRow {
             options: *config,
-            image: region_error(&out.composite, &truth.composite, |_, _| true),
-            artefact: region_error(&out.composite, &truth.composite, in_artefact),
-            shadow: region_error(&out.composite, &truth.composite, in_shadow),
+            image: e.image,
+            artefact: e.artefact,
+            shadow: e.shadow,
+            affected: e.affected,
             render_ms,
         });
     }
+    Ok(rows)
+}
+
+/// Renders the setup's scene with the path tracer (photo, TRUE depth and lights, ground-truth
+/// composite), then with the renderer in every configuration, and measures the error of each.
+///
+/// # Errors
+/// As [`render_truth`] and [`compare_true_inputs`].
+pub fn compare_with_reference(
+    renderer: &Renderer,
+    setup: &ComparisonSetup,
+) -> Result<ComparisonResult> {
+    let truth = render_truth(setup, false)?;
+    let rows = compare_true_inputs(renderer, &truth, &setup.configs)?;
     Ok(ComparisonResult {
         rows,
-        reference_seconds: truth.render_seconds,
+        reference_seconds: truth.reference_seconds,
         samples_per_pixel: truth.samples_per_pixel,
-        size: (w, h),
+        size: truth.size(),
     })
 }
 

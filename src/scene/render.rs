@@ -8,7 +8,7 @@
 use super::Scene;
 use crate::error::Result;
 use crate::image::Raster;
-use crate::render::{Composite, RenderInputs, RenderOptions, Renderer};
+use crate::render::{Composite, RenderInputs, RenderOptions};
 use crate::trace::{StageStatus, Trace};
 
 impl Scene {
@@ -57,10 +57,23 @@ impl Scene {
             Some(sh) => sh,
             None => self.environment_traced(trace)?.sh9,
         };
-        let gpu = self.context.gpu()?;
-        let renderer = trace.time("renderer", "pipelines for this render", |_| {
-            Renderer::new(&gpu)
-        })?;
+        let start = std::time::Instant::now();
+        let (renderer, compiled) = self.context.renderer()?;
+        if compiled {
+            trace.record(
+                "renderer",
+                StageStatus::Computed,
+                start.elapsed().as_secs_f64() * 1e3,
+                "first render of this context: GPU opened, shaders and pipelines compiled",
+            );
+        } else {
+            trace.record(
+                "renderer",
+                StageStatus::Reused,
+                0.0,
+                "pipelines of the context's earlier renders",
+            );
+        }
         let inputs = RenderInputs {
             photo: &pair.left_rgb,
             camera: &camera,

@@ -21,7 +21,10 @@ impl CommonArgs {
     /// Writes the report when `--report` was given, and prints the trace's warnings unless quiet.
     pub fn finish(&self, trace: &Trace) -> parallax::Result<()> {
         if !self.quiet {
-            for w in trace.warnings() {
+            // A warning repeated by several stages of one run (each call that reuses a product
+            // reports its warnings again) is printed once.
+            let mut seen = std::collections::HashSet::new();
+            for w in trace.warnings().iter().filter(|w| seen.insert(w.as_str())) {
                 eprintln!("parallax: warning: {w}");
             }
         }

@@ -14,7 +14,11 @@ use parallax::trace::{StageStatus, Trace};
 use parallax::{Error, Result};
 
 use crate::common::CommonArgs;
+use crate::plot::{scatter, Axes, Point};
 
+#[cfg(all(feature = "gpu", feature = "gltf"))]
+#[path = "eval_composite.rs"]
+mod composite;
 #[path = "eval_lights.rs"]
 mod lights;
 #[path = "eval_reconstruction.rs"]
@@ -35,6 +39,10 @@ enum What {
     Reconstruction(reconstruction::ReconstructionArgs),
     /// Shadow mask, lights, environment and SH against synthetic scenes' exact truth.
     Lights(lights::LightsArgs),
+    /// The composite (stereo → mesh → lights → render, and with TRUE depth and lights) against
+    /// the path tracer's ground truth, for every shading and shadow mode, with run times.
+    #[cfg(all(feature = "gpu", feature = "gltf"))]
+    Composite(composite::CompositeArgs),
 }
 
 /// Arguments of `parallax eval stereo`.
@@ -64,6 +72,8 @@ pub fn run(args: Args) -> Result<()> {
         What::Stereo(a) => run_stereo(a),
         What::Reconstruction(a) => reconstruction::run(a),
         What::Lights(a) => lights::run(a),
+        #[cfg(all(feature = "gpu", feature = "gltf"))]
+        What::Composite(a) => composite::run(a),
     }
 }
 
@@ -507,56 +517,23 @@ fn colour(i: usize, n: usize, peer: bool) -> [u8; 3] {
 
 /// Error against time: x = time per pair on a log scale (1 ms – 10 s), y = nonocc bad 0.5 %.
 fn plot(rows: &[Row], _scenes: &[Scene]) -> Result<Image> {
-    let (w, h) = (640usize, 480usize);
-    let (x0, x1, y0, y1) = (60usize, 620usize, 440usize, 20usize);
-    let mut px = vec![255u8; w * h * 3];
-    let put = |x: usize, y: usize, c: [u8; 3], px: &mut Vec<u8>| {
-        if x < w && y < h {
-            px[(y * w + x) * 3..(y * w + x) * 3 + 3].copy_from_slice(&c);
-        }
-    };
-    let grid = [225, 225, 225];
-    // Grid: every 10 % and every decade (1 ms, 10 ms, 100 ms, 1 s, 10 s).
-    for k in 0..=10 {
-        let y = y0 - (y0 - y1) * k / 10;
-        for x in x0..=x1 {
-            put(x, y, grid, &mut px);
-        }
-    }
-    for k in 0..=4 {
-        let x = x0 + (x1 - x0) * k / 4;
-        for y in y1..=y0 {
-            put(x, y, grid, &mut px);
-        }
-    }
-    for x in x0..=x1 {
-        put(x, y0, [0, 0, 0], &mut px);
-    }
-    for y in y1..=y0 {
-        put(x0, y, [0, 0, 0], &mut px);
-    }
     let n = rows.len();
-    for (i, r) in rows.iter().enumerate() {
-        let per_pair = r.ms.iter().sum::<f64>() / r.ms.len().max(1) as f64;
-        let bad = mean(r.scores.iter().map(|s| s.nonocc.bad[0]));
-        let t = ((per_pair.max(1.0).log10()) / 4.0).clamp(0.0, 1.0);
-        let x = x0 + ((x1 - x0) as f64 * t) as usize;
-        let y = y0 - ((y0 - y1) as f64 * (bad / 100.0).clamp(0.0, 1.0)) as usize;
-        let c = colour(i, n, r.peer);
-        for dy in -5i32..=5 {
-            for dx in -5i32..=5 {
-                let edge = dx.abs() == 5 || dy.abs() == 5;
-                if r.peer && !edge && dx.abs() < 4 && dy.abs() < 4 {
-                    continue;
-                }
-                put(
-                    (x as i32 + dx) as usize,
-                    (y as i32 + dy) as usize,
-                    c,
-                    &mut px,
-                );
-            }
-        }
-    }
-    Image::from_bytes(w as u32, h as u32, PixelFormat::Rgb8, px)
+    let points: Vec<Point> = rows
+        .iter()
+        .enumerate()
+        .map(|(i, r)| Point {
+            ms: r.ms.iter().sum::<f64>() / r.ms.len().max(1) as f64,
+            error: mean(r.scores.iter().map(|s| s.nonocc.bad[0])),
+            colour: colour(i, n, r.peer),
+            hollow: r.peer,
+        })
+        .collect();
+    scatter(
+        &points,
+        &Axes {
+            decade_lo: 0,
+            decade_hi: 4,
+            error_max: 100.0,
+        },
+    )
 }

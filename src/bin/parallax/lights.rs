@@ -8,7 +8,7 @@ use glam::Vec3;
 use parallax::image::{Image, Raster};
 use parallax::light::{
     estimate_lighting, prefilter::sample_cube, Environment, EnvironmentOptions, EstimateOptions,
-    Light, LightKind,
+    Light,
 };
 use parallax::mesh::UpSource;
 use parallax::trace::Trace;
@@ -16,6 +16,7 @@ use parallax::{Error, Result};
 
 use crate::common::CommonArgs;
 use crate::depth_input::{absorb, DepthInput};
+use crate::previews::lights_preview;
 
 /// Arguments of `parallax lights`.
 #[derive(clap::Args, Debug)]
@@ -234,40 +235,7 @@ pub fn run(args: Args) -> Result<()> {
         to_equirect(&environment, 256, 128).write_exr(path)?;
     }
     if let Some(path) = &args.out_preview {
-        let mut out = photo.clone();
-        // Shadow mask: blue tint.
-        for (c, m) in out
-            .pixels_mut()
-            .iter_mut()
-            .zip(estimate.shadow_mask.pixels())
-        {
-            let m = m.clamp(0.0, 1.0) * 0.6;
-            *c = [
-                c[0] * (1.0 - m),
-                c[1] * (1.0 - m),
-                c[2] * (1.0 - m) + 0.5 * m,
-            ];
-        }
-        let project = |p: Vec3| camera.project(p).map(|(uv, _)| uv);
-        for l in &estimate.fit.lights {
-            if l.kind == LightKind::Directional {
-                continue;
-            }
-            let p = Vec3::from(l.position);
-            if let (Some(c), Some(e)) =
-                (project(p), project(p + Vec3::X * (l.size / 2.0).max(0.02)))
-            {
-                circle(&mut out, c, (e - c).length().max(4.0), [1.0, 0.9, 0.0]);
-            }
-        }
-        // Main light: a line from the insertion point towards it (0.5 m), and the point.
-        let point = Vec3::from(estimate.insertion_point);
-        let (towards, dist) = estimate.fit.main.towards(point);
-        let reach = if dist.is_finite() { dist.min(0.5) } else { 0.5 };
-        if let (Some(a), Some(b)) = (project(point), project(point + towards * reach)) {
-            line(&mut out, a, b, [1.0, 0.2, 0.1]);
-            circle(&mut out, a, 4.0, [1.0, 0.2, 0.1]);
-        }
+        let out = lights_preview(&photo, &estimate, &camera);
         Image::from_linear_rgb(&out).save_png(path)?;
     }
     if !args.common.quiet {
@@ -294,28 +262,4 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     args.common.finish(&trace)
-}
-
-fn put(out: &mut Raster<[f32; 3]>, x: f32, y: f32, colour: [f32; 3]) {
-    if x >= 0.0 && y >= 0.0 && (x as usize) < out.width() && (y as usize) < out.height() {
-        *out.get_mut(x as usize, y as usize) = colour;
-    }
-}
-
-fn line(out: &mut Raster<[f32; 3]>, a: glam::Vec2, b: glam::Vec2, colour: [f32; 3]) {
-    let steps = (b - a).length().ceil().clamp(1.0, 10_000.0) as usize;
-    for s in 0..=steps {
-        let p = a.lerp(b, s as f32 / steps as f32);
-        for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)] {
-            put(out, p.x + dx, p.y + dy, colour);
-        }
-    }
-}
-
-fn circle(out: &mut Raster<[f32; 3]>, c: glam::Vec2, r: f32, colour: [f32; 3]) {
-    let steps = (r * 8.0).clamp(16.0, 2000.0) as usize;
-    for s in 0..steps {
-        let a = s as f32 / steps as f32 * std::f32::consts::TAU;
-        put(out, c.x + r * a.cos(), c.y + r * a.sin(), colour);
-    }
 }

@@ -6,6 +6,8 @@
 mod common;
 #[cfg(all(feature = "gpu", feature = "gltf"))]
 mod composite;
+#[cfg(all(feature = "gpu", feature = "gltf"))]
+mod demo;
 mod depth;
 mod depth_input;
 mod eval;
@@ -14,6 +16,8 @@ mod info;
 mod inspect;
 mod lights;
 mod mesh;
+mod plot;
+mod previews;
 mod surfaces;
 mod synth;
 
@@ -29,6 +33,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The whole pipeline on the embedded default: a synthetic room is path traced as a stereo
+    /// pair, reconstructed and lit, and two objects are rendered into it.
+    #[cfg(all(feature = "gpu", feature = "gltf"))]
+    Demo(demo::Args),
     /// Version, compiled features and the GPU adapters found.
     Info(info::Args),
     /// Scene mesh from a stereo pair, a depth map or disparity + calibration, as GLB, PLY or OBJ.
@@ -55,6 +63,8 @@ enum Command {
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        #[cfg(all(feature = "gpu", feature = "gltf"))]
+        Command::Demo(args) => demo::run(args),
         Command::Info(args) => info::run(args),
         Command::Mesh(args) => mesh::run(args),
         Command::Surfaces(args) => surfaces::run(args),

@@ -3,14 +3,14 @@
 
 use std::path::PathBuf;
 
-use glam::Vec2;
-use parallax::image::{Image, Raster};
+use parallax::image::Image;
 use parallax::mesh::{MeshOptions, SurfaceOptions};
 use parallax::trace::Trace;
 use parallax::{Error, Result};
 
 use crate::common::CommonArgs;
 use crate::depth_input::{absorb, DepthInput};
+use crate::previews::{grey_depth, surfaces_preview};
 
 /// Arguments of `parallax surfaces`.
 #[derive(clap::Args, Debug)]
@@ -29,18 +29,6 @@ pub struct Args {
     #[command(flatten)]
     common: CommonArgs,
 }
-
-/// Tints, one per surface (cycled).
-const COLOURS: [[f32; 3]; 8] = [
-    [0.9, 0.2, 0.2],
-    [0.2, 0.8, 0.2],
-    [0.2, 0.4, 1.0],
-    [1.0, 0.8, 0.1],
-    [0.8, 0.2, 0.9],
-    [0.1, 0.9, 0.9],
-    [1.0, 0.5, 0.1],
-    [0.6, 0.6, 0.6],
-];
 
 /// Finds the surfaces and writes what was asked for.
 pub fn run(args: Args) -> Result<()> {
@@ -88,30 +76,7 @@ pub fn run(args: Args) -> Result<()> {
             Some(photo) => photo.to_linear_rgb(),
             None => grey_depth(&depth),
         };
-        let mut out = background.clone();
-        let tolerance = SurfaceOptions::default().distance_tolerance * 2.0;
-        for y in 0..out.height() {
-            for x in 0..out.width() {
-                let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let Some(p) = camera.unproject(pixel.x, pixel.y, *depth.get(x, y)) else {
-                    continue;
-                };
-                // The first (largest) surface whose plane holds this pixel's point, inside its
-                // extent.
-                if let Some((i, _)) = found.surfaces.iter().enumerate().find(|(_, s)| {
-                    s.distance(p).abs() <= tolerance * -p.z && s.contains_pixel(pixel)
-                }) {
-                    let c = COLOURS[i % COLOURS.len()];
-                    let px = out.get_mut(x, y);
-                    for k in 0..3 {
-                        px[k] = 0.45 * px[k] + 0.55 * c[k];
-                    }
-                }
-            }
-        }
-        for (i, s) in found.surfaces.iter().enumerate() {
-            draw_polygon(&mut out, &s.polygon_image, COLOURS[i % COLOURS.len()]);
-        }
+        let out = surfaces_preview(&background, &depth, &camera, &found);
         Image::from_linear_rgb(&out).save_png(path)?;
     }
     if !args.common.quiet {
@@ -127,36 +92,4 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     args.common.finish(&trace)
-}
-
-/// Depth as grey (near bright), for previews without a photo.
-fn grey_depth(depth: &Raster<f32>) -> Raster<[f32; 3]> {
-    let (lo, hi) = parallax::camera::valid_depth_range(depth).unwrap_or((1.0, 2.0));
-    depth.map(|&z| {
-        if z.is_finite() && z > 0.0 {
-            let t = if hi > lo { (hi - z) / (hi - lo) } else { 1.0 };
-            let g = 0.05 + 0.6 * t * t;
-            [g; 3]
-        } else {
-            [0.0; 3]
-        }
-    })
-}
-
-/// Outline of a polygon, two pixels wide.
-fn draw_polygon(out: &mut Raster<[f32; 3]>, poly: &[Vec2], colour: [f32; 3]) {
-    let (w, h) = (out.width() as i64, out.height() as i64);
-    for (i, a) in poly.iter().enumerate() {
-        let b = poly[(i + 1) % poly.len()];
-        let steps = (b - *a).length().ceil().clamp(1.0, 100_000.0) as usize;
-        for s in 0..=steps {
-            let p = a.lerp(b, s as f32 / steps as f32);
-            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
-                if (0..w).contains(&x) && (0..h).contains(&y) {
-                    *out.get_mut(x as usize, y as usize) = colour;
-                }
-            }
-        }
-    }
 }
