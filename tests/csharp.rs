@@ -1130,6 +1130,17 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
     );
     assert_eq!(v["memory_artefact_world_min"], "0,-0.25,-2.5");
     assert_eq!(v["sh9_set"], "0.25,0.5,0.75");
+    // A uniform grey host environment (sRGB 128) comes back on the cube as its linear value.
+    let cube: Vec<&str> = v["environment_cube"].split(':').collect();
+    assert!(
+        cube[0].parse::<u32>().unwrap() > 0 && cube[1] == "1",
+        "{stdout}"
+    );
+    let linear = ((128.0 / 255.0 + 0.055) / 1.055f64).powf(2.4);
+    assert!(
+        (cube[2].parse::<f64>().unwrap() - linear).abs() < 0.01,
+        "{stdout}"
+    );
     assert_eq!(v["host_depth"], "2");
     assert_eq!(v["host_depth_stereo_skipped"], "1");
     assert_eq!(v["host_camera_fx"], "20");

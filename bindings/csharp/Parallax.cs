@@ -737,6 +737,36 @@ namespace Parallax
             }
         }
 
+        /// <summary>Edge length in texels of each face of the environment cube.</summary>
+        public int EnvironmentCubeSize()
+        {
+            uint size;
+            Check(Native.plx_scene_environment_cube_size(Handle, out size));
+            return (int)size;
+        }
+
+        /// <summary>Face <paramref name="face"/> (0 +X, 1 -X, 2 +Y, 3 -Y, 4 +Z, 5 -Z; GPU array-layer
+        /// order, row 0 at the top) of the environment cube, linear radiance relative to the photo's
+        /// white, as EnvironmentCubeSize() squared pixels of <paramref name="format"/> (RgbaF16 for a
+        /// GPU's RGBA16F cube).</summary>
+        public byte[] EnvironmentCubeFace(int face, PlxPixelFormat format = PlxPixelFormat.RgbaF16)
+        {
+            int size = EnvironmentCubeSize();
+            int stride = size * BytesPerPixel(format);
+            byte[] pixels = new byte[stride * size];
+            GCHandle pin = GCHandle.Alloc(pixels, GCHandleType.Pinned);
+            try
+            {
+                PlxImageOut o = ImageOut(pin.AddrOfPinnedObject(), size, size, stride, format);
+                Check(Native.plx_scene_environment_cube_face(Handle, (uint)face, ref o));
+            }
+            finally
+            {
+                pin.Free();
+            }
+            return pixels;
+        }
+
         /// <summary>Back to the estimated environment.</summary>
         public void ResetEnvironment() { Check(Native.plx_scene_set_environment_equirect(Handle, IntPtr.Zero)); }
 

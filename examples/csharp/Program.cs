@@ -239,6 +239,11 @@ static class Program
         byte[] env = new byte[16 * 8 * 3];
         for (int i = 0; i < env.Length; i++) env[i] = 128;
         scene.SetEnvironmentEquirect(env, 16, 8, PlxPixelFormat.Rgb8);
+        int cube = scene.EnvironmentCubeSize();
+        byte[] face = scene.EnvironmentCubeFace(2, PlxPixelFormat.RgbaF32);
+        float[] texels = new float[face.Length / 4];
+        Buffer.BlockCopy(face, 0, texels, 0, face.Length);
+        Print("environment_cube", cube + ":" + (face.Length == cube * cube * 16 ? 1 : 0) + ":" + texels[0].ToString("R", C));
         scene.ResetEnvironment();
 
         // Host depth: a stereo pair of one grey and a wall 2 m away; no stereo runs.

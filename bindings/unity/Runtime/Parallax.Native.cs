@@ -497,6 +497,12 @@ namespace Parallax
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
         public static extern PlxStatus plx_scene_sh9(SceneHandle scene, [Out] float[] output);
 
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_scene_environment_cube_size(SceneHandle scene, out uint size);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_scene_environment_cube_face(SceneHandle scene, uint face, ref PlxImageOut output);
+
         // ---- logging ----
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
