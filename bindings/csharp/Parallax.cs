@@ -150,7 +150,9 @@ namespace Parallax
 
         /// <summary>
         /// The process-wide log callback, up to <paramref name="maxLevel"/>; null removes it. It
-        /// may run on any thread that calls Parallax; exceptions it throws are swallowed.
+        /// may run on any thread that calls Parallax; exceptions it throws are swallowed. In the
+        /// Unity editor the native library survives domain reloads: remove the callback before one
+        /// (e.g. in OnDestroy or AssemblyReloadEvents.beforeAssemblyReload).
         /// </summary>
         public static void SetLogCallback(Action<PlxLogLevel, string> callback, PlxLogLevel maxLevel = PlxLogLevel.Warn)
         {

@@ -75,6 +75,10 @@ namespace Parallax
 
         void OnDestroy()
         {
+            // The native library outlives the editor's domain reloads: leave it no callback into
+            // this domain.
+            if (logWarnings)
+                Library.SetLogCallback(null);
             if (scene != null)
                 scene.Dispose();
             if (context != null)
