@@ -894,7 +894,8 @@ namespace Parallax
     /// render event renders, for GL.IssuePluginEvent(UnityRenderEvents.Function, eventId) or
     /// CommandBuffer.IssuePluginEvent. Parallax renders into the registered CPU buffer (rows top
     /// first); upload it into a texture afterwards. The buffers stay pinned and the scene
-    /// referenced until the target is replaced or removed. Thread-safe.
+    /// referenced until the target is replaced or removed. Remove every target before the editor
+    /// reloads the domain (the native library keeps the buffers' addresses across it). Thread-safe.
     /// </summary>
     public static class UnityRenderEvents
     {
