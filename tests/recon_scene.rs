@@ -405,6 +405,43 @@ fn placement_from_a_host_ray_and_with_model_bounds() {
 }
 
 #[test]
+fn normals_on_detected_surfaces_snap_to_the_planes_and_others_are_kept() {
+    let room = room(160, 120, 140.0);
+    let mesh = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
+    let surfaces = surfaces_of(&room, &mesh);
+    // Every normal wrong (pointing at the camera along +Z) before snapping.
+    let mut normals = Raster::filled(160, 120, [0.0f32, 0.0, 1.0]);
+    let replaced = surfaces.snap_normals(
+        &room.depth,
+        &room.camera,
+        &mut normals,
+        2.0 * SurfaceOptions::default().distance_tolerance,
+    );
+    assert!(replaced > 160 * 120 / 2, "{replaced} pixels snapped");
+    let (mut floor, mut floor_ok) = (0, 0);
+    for y in 0..120 {
+        for x in 0..160 {
+            if *room.labels.get(x, y) == Label::Floor && interior(&room, x, y, 3) {
+                floor += 1;
+                let n = Vec3::from(*normals.get(x, y));
+                floor_ok += (n.angle_between(room.up()).to_degrees() < 1.0) as usize;
+            }
+        }
+    }
+    assert!(
+        floor > 1000 && floor_ok * 10 > floor * 9,
+        "{floor_ok} of {floor}"
+    );
+    // A size that does not fit the camera changes nothing.
+    let mut other = Raster::filled(8, 8, [0.0f32, 0.0, 1.0]);
+    assert_eq!(
+        surfaces.snap_normals(&room.depth, &room.camera, &mut other, 0.02),
+        0
+    );
+    assert!(other.pixels().iter().all(|n| *n == [0.0, 0.0, 1.0]));
+}
+
+#[test]
 fn placement_trusts_the_detected_plane_over_a_noisy_vertex_normal() {
     let room = room(320, 240, 280.0);
     let clean = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();

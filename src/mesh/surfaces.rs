@@ -31,6 +31,7 @@ use glam::{DVec3, Vec2, Vec3};
 use super::SceneMesh;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
+use crate::image::Raster;
 
 /// How surfaces are searched for.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -177,6 +178,53 @@ pub struct Surfaces {
     pub up: Vec3,
     /// Whether `up` came from planes or is the camera fallback.
     pub up_source: UpSource,
+}
+
+impl Surfaces {
+    /// The first (largest) surface that holds the point seen at `pixel` (continuous pixels): the
+    /// point lies within `tolerance` × its depth of the plane and the pixel inside the surface's
+    /// image polygon.
+    pub fn surface_at(&self, pixel: Vec2, point: Vec3, tolerance: f32) -> Option<usize> {
+        self.surfaces.iter().position(|s| {
+            s.distance(point).abs() <= tolerance * -point.z && s.contains_pixel(pixel)
+        })
+    }
+
+    /// Replaces the normal of every pixel whose point lies on a detected surface
+    /// ([`Surfaces::surface_at`] with `tolerance`) by that surface's normal, and returns how many
+    /// pixels it replaced. A plane fitted to thousands of points knows its orientation far better
+    /// than a normal estimated from a stereo pixel's neighbourhood; pixels on no surface keep
+    /// theirs. `depth` (metres, NaN = none) and `normals` must have the camera's size; other sizes
+    /// leave `normals` unchanged.
+    pub fn snap_normals(
+        &self,
+        depth: &Raster<f32>,
+        camera: &Camera,
+        normals: &mut Raster<[f32; 3]>,
+        tolerance: f32,
+    ) -> usize {
+        let size = (camera.width as usize, camera.height as usize);
+        if self.surfaces.is_empty()
+            || (depth.width(), depth.height()) != size
+            || (normals.width(), normals.height()) != size
+        {
+            return 0;
+        }
+        let mut replaced = 0;
+        for y in 0..size.1 {
+            for x in 0..size.0 {
+                let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let Some(point) = camera.unproject(pixel.x, pixel.y, *depth.get(x, y)) else {
+                    continue;
+                };
+                if let Some(i) = self.surface_at(pixel, point, tolerance) {
+                    *normals.get_mut(x, y) = self.surfaces[i].normal.to_array();
+                    replaced += 1;
+                }
+            }
+        }
+        replaced
+    }
 }
 
 /// Finds the planar surfaces of a scene mesh (preferably the unsimplified grid, so that inlier

@@ -11,10 +11,14 @@ use super::{Input, Product, Scene};
 use crate::error::{Error, Result};
 use crate::image::Raster;
 use crate::light::{
-    estimate_lighting, Environment, EnvironmentOptions, EstimateOptions, Light, LightingEstimate,
-    Sh9,
+    estimate_lighting, normals_from_depth, Environment, EnvironmentOptions, EstimateOptions, Light,
+    LightingEstimate, Sh9,
 };
 use crate::trace::Trace;
+
+/// A pixel's normal becomes its support surface's when its point lies within this many times the
+/// surface detection's distance tolerance of the plane (the spread of the plane's own inliers).
+const SNAP_TOLERANCE_FACTOR: f32 = 2.0;
 
 /// The lighting inputs the host may give instead of the estimates.
 #[derive(Debug, Default, Clone)]
@@ -155,14 +159,23 @@ impl Scene {
             self.surfaces.generation,
         ];
         let depth = Arc::clone(&base.0);
+        let tolerance = SNAP_TOLERANCE_FACTOR
+            * self
+                .surface_options
+                .value
+                .unwrap_or_default()
+                .distance_tolerance;
         let estimate =
             self.lighting
                 .estimate
                 .get_or_compute("lighting", &versions, trace, |_| {
+                    // Shading is explained by normals: on the support surfaces take the planes'.
+                    let mut normals = normals_from_depth(&depth, &camera, 0.05)?;
+                    surfaces.snap_normals(&depth, &camera, &mut normals, tolerance);
                     estimate_lighting(
                         &pair.left_rgb,
                         &depth,
-                        None,
+                        Some(&normals),
                         &camera,
                         surfaces.up.to_array(),
                         None,

@@ -6,7 +6,8 @@
 //!
 //! The photo given to the estimator is the left view clipped to [0, 1] (an LDR photo). Depth and
 //! normals are the renderer's exact ones (`--stereo` matches the pair instead and takes normals
-//! from that depth). Writes `lights.md` and `lights.json` to the output folder.
+//! from that depth, snapped to the detected support planes as the Scene does). Writes `lights.md`
+//! and `lights.json` to the output folder.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -19,6 +20,7 @@ use parallax::light::{
     self, estimate_lighting, sh9_basis_polynomials, sh9_from_cube, shadow_mask, EstimateOptions,
     LightKind, Sh9, ShadowMethod, ShadowOptions,
 };
+use parallax::mesh::{detect_surfaces, MeshOptions, SceneMesh, SurfaceOptions};
 use parallax::reference::{self, Images, LightRecord, RenderOptions, SampleBudget};
 use parallax::{Error, Result};
 
@@ -176,7 +178,18 @@ fn evaluate(
         let options = parallax::stereo::StereoOptions::preset(parallax::stereo::Preset::Balanced);
         let disparity = parallax::stereo::match_pair(&l.view(), &r.view(), &options)?;
         let depth = disparity.disparity.map(|&d| c.depth_from_disparity(d));
-        (depth, None)
+        // As the Scene does: normals from depth, the support planes' where they hold.
+        let surface_options = SurfaceOptions::default();
+        let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default())?;
+        let surfaces = detect_surfaces(&mesh, &camera, &surface_options)?;
+        let mut normals = light::normals_from_depth(&depth, &camera, 0.05)?;
+        surfaces.snap_normals(
+            &depth,
+            &camera,
+            &mut normals,
+            2.0 * surface_options.distance_tolerance,
+        );
+        (depth, Some(normals))
     } else {
         (images.depth.clone(), Some(images.normals.clone()))
     };

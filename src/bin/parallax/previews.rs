@@ -35,11 +35,7 @@ pub fn surfaces_preview(
             let Some(p) = camera.unproject(pixel.x, pixel.y, *depth.get(x, y)) else {
                 continue;
             };
-            if let Some((i, _)) =
-                found.surfaces.iter().enumerate().find(|(_, s)| {
-                    s.distance(p).abs() <= tolerance * -p.z && s.contains_pixel(pixel)
-                })
-            {
+            if let Some(i) = found.surface_at(pixel, p, tolerance) {
                 let c = COLOURS[i % COLOURS.len()];
                 let px = out.get_mut(x, y);
                 for k in 0..3 {
