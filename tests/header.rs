@@ -67,3 +67,54 @@ fn header_version_macros_match_cargo_toml() {
         .expect("Cargo.toml has a version");
     assert!(version_line.contains(env!("CARGO_PKG_VERSION")));
 }
+
+/// The functions the header declares (outside comments).
+fn declared_functions(header: &str) -> Vec<String> {
+    let mut names: Vec<String> = header
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("//"))
+        .flat_map(|l| {
+            // Every identifier right before a '(' is a declared (or called) function.
+            let pieces: Vec<&str> = l.split('(').collect();
+            pieces[..pieces.len() - 1]
+                .iter()
+                .filter_map(|p| {
+                    p.rsplit(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                        .next()
+                })
+                .filter(|w| {
+                    w.starts_with("plx_")
+                        || w.starts_with("UnityPlugin")
+                        || *w == "GetRenderEventFunc"
+                })
+                .map(str::to_string)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    names.sort();
+    names.dedup();
+    names
+}
+
+#[test]
+fn every_declared_function_is_called_by_a_c_test() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let header = std::fs::read_to_string(root.join("include/parallax.h")).unwrap();
+    let functions = declared_functions(&header);
+    assert!(functions.len() > 50, "{functions:?}");
+    let mut c_tests = String::new();
+    for entry in std::fs::read_dir(root.join("ffi-tests")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "c") {
+            c_tests.push_str(&std::fs::read_to_string(&path).unwrap());
+        }
+    }
+    let untested: Vec<&String> = functions
+        .iter()
+        .filter(|f| !c_tests.contains(&format!("{f}(")))
+        .collect();
+    assert!(
+        untested.is_empty(),
+        "exported but called by no ffi-tests/*.c: {untested:?}"
+    );
+}
