@@ -442,6 +442,56 @@ fn normals_on_detected_surfaces_snap_to_the_planes_and_others_are_kept() {
 }
 
 #[test]
+fn without_planes_a_slanted_vertex_normal_stands_the_object_along_gravity() {
+    let room = room(320, 240, 280.0);
+    let clean = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
+    let no_planes = Surfaces {
+        surfaces: Vec::new(),
+        up: room.up(),
+        up_source: UpSource::Planes,
+    };
+    let spot = room.to_camera * Vec3::new(0.2, TABLE_Y, -2.5);
+    let pixel = room.camera.project(spot).unwrap().0;
+    // 45° off: neither a floor's nor a wall's normal, as noisy stereo normals are.
+    for (tilt_deg, expect_gravity) in [(45.0f32, true), (85.0, false)] {
+        let mut noisy = clean.clone();
+        let tilt = glam::Quat::from_rotation_z(tilt_deg.to_radians());
+        for n in &mut noisy.normals {
+            *n = (tilt * Vec3::from(*n)).to_array();
+        }
+        let bvh = Bvh::new(&noisy);
+        let p = place(
+            &bvh,
+            &room.camera,
+            &no_planes,
+            pixel,
+            0.3,
+            0.0,
+            &PlaceOptions::default(),
+        )
+        .unwrap();
+        let from_gravity = p.up.angle_between(room.up()).to_degrees();
+        if expect_gravity {
+            assert!(
+                from_gravity < 0.1,
+                "{tilt_deg}°: up {from_gravity}° off gravity"
+            );
+        } else {
+            // A wall-like normal is followed (a picture on a wall).
+            let followed = p.up.angle_between(tilt * room.up()).to_degrees();
+            assert!(
+                followed < 3.0,
+                "{tilt_deg}°: {followed}° from the tilted normal"
+            );
+            assert!(
+                (from_gravity - 90.0).abs() <= 20.0,
+                "{tilt_deg}°: {from_gravity}°"
+            );
+        }
+    }
+}
+
+#[test]
 fn placement_trusts_the_detected_plane_over_a_noisy_vertex_normal() {
     let room = room(320, 240, 280.0);
     let clean = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();

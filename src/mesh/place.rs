@@ -19,7 +19,9 @@ use crate::error::{Error, Result};
 #[serde(rename_all = "snake_case")]
 pub enum Orientation {
     /// Gravity up on surfaces within `max_tilt_deg` of horizontal (a vase on a table), the surface
-    /// normal elsewhere (a picture on a wall).
+    /// normal elsewhere (a picture on a wall): the detected plane's at any slant, a lone mesh
+    /// normal only within `max_tilt_deg` of vertical (a noisy stereo normal in between stands
+    /// the object upright along gravity).
     Auto,
     /// Always the estimated gravity up.
     Gravity,
@@ -206,7 +208,12 @@ pub fn place_on_ray(
         Orientation::Gravity => surfaces.up,
         Orientation::SurfaceNormal => normal,
         Orientation::Auto => {
-            if normal.angle_between(surfaces.up).to_degrees() <= options.max_tilt_deg {
+            let tilt = normal.angle_between(surfaces.up).to_degrees();
+            let horizontal = tilt <= options.max_tilt_deg;
+            let vertical = (tilt - 90.0).abs() <= options.max_tilt_deg;
+            // A detected plane's normal is trusted at any slant; one vertex normal only when it
+            // is clearly a wall's: stereo vertex normals in between are mostly noise.
+            if horizontal || (surface.is_none() && !vertical) {
                 surfaces.up
             } else {
                 normal
