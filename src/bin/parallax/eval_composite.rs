@@ -305,8 +305,9 @@ fn markdown(report: &Report, args: &CompositeArgs) -> String {
         "Scenes rendered at width {} by the reference path tracer ({} spp); MAE in linear light, \
          PSNR with peak 1. `true`: TRUE depth, lights and SH9; `estimated`: stereo → mesh → \
          lights → render from the 8-bit pair, against the truth clipped to [0, 1]. Render time: \
-         the whole render call (uploads, shadow maps, readback; `estimated` also builds its \
-         pipelines each call). Speed-up: the path tracer's time for the same composite over the \
+         the whole render call after one untimed warm-up (uploads, shadow maps, readback; \
+         `estimated` through `Scene::render`, its depth, mesh and lights reused). Both sides \
+         render the objects at the truth's poses. Speed-up: the path tracer's time for the same composite over the \
          render time.\n\n",
         args.width, args.spp
     );
