@@ -272,105 +272,135 @@ pub fn refine_locally(
     iterations: u32,
 ) {
     let (w, h) = (left.width(), left.height());
-    let r = radius as isize;
-    // Horizontal gradient of the right view (central differences).
-    let grad: Vec<f32> = (0..w * h)
-        .map(|p| {
-            let (x, y) = (p % w, p / w);
-            let a = *right.get(x.saturating_sub(1), y) as f32;
-            let b = *right.get((x + 1).min(w - 1), y) as f32;
-            0.5 * (b - a)
-        })
-        .collect();
-    let similarity: Vec<f32> = (0..256).map(|d| (-(d as f32) / 12.0).exp()).collect();
+    if w < 2 {
+        return;
+    }
+    // Horizontal gradient of the right view (central differences, borders replicated).
+    let mut grad = vec![0f32; w * h];
+    grad.par_chunks_mut(w).enumerate().for_each(|(y, g)| {
+        let row = right.row(y);
+        for (x, g) in g.iter_mut().enumerate() {
+            let a = row[x.saturating_sub(1)] as f32;
+            let b = row[(x + 1).min(w - 1)] as f32;
+            *g = 0.5 * (b - a);
+        }
+    });
+    let mut similarity = [0f32; 256];
+    for (d, s) in similarity.iter_mut().enumerate() {
+        *s = (-(d as f32) / 12.0).exp();
+    }
     let src = disparity.pixels().to_vec();
+    let ctx = LocalFit {
+        left,
+        right,
+        grad: &grad,
+        similarity: &similarity,
+        radius,
+        iterations,
+    };
     disparity
         .pixels_mut()
         .par_chunks_mut(w)
         .enumerate()
         .for_each(|(y, out)| {
-            let mut lv = Vec::with_capacity((2 * radius + 1).pow(2));
             for (x, o) in out.iter_mut().enumerate() {
                 let d0 = src[y * w + x];
                 if d0.is_nan() {
                     continue;
                 }
-                let centre = *left.get(x, y);
-                // Window pixels: left value and similarity weight.
-                lv.clear();
-                for j in -r..=r {
-                    let yy = y as isize + j;
-                    if yy < 0 || yy >= h as isize {
-                        continue;
-                    }
-                    for i in -r..=r {
-                        let xx = x as isize + i;
-                        if xx < 0 || xx >= w as isize {
-                            continue;
-                        }
-                        let v = *left.get(xx as usize, yy as usize);
-                        let wt = similarity[v.abs_diff(centre) as usize];
-                        lv.push((xx as f32, yy as usize, v as f32, wt));
-                    }
-                }
-                let mut d = d0;
-                let mut ok = true;
-                for _ in 0..iterations {
-                    let (mut sw, mut sl, mut sr, mut sg) = (0f32, 0f32, 0f32, 0f32);
-                    let mut samples = [(0f32, 0f32, 0f32, 0f32); 81];
-                    let mut n = 0;
-                    for &(xx, yy, lval, wt) in &lv {
-                        let xs = xx - d;
-                        if xs < 0.0 || xs > (w - 1) as f32 || n == samples.len() {
-                            continue;
-                        }
-                        let x0 = (xs as usize).min(w - 2);
-                        let f = xs - x0 as f32;
-                        let row = right.row(yy);
-                        let rv = row[x0] as f32 * (1.0 - f) + row[x0 + 1] as f32 * f;
-                        let g = grad[yy * w + x0] * (1.0 - f) + grad[yy * w + x0 + 1] * f;
-                        samples[n] = (lval, rv, g, wt);
-                        n += 1;
-                        sw += wt;
-                        sl += wt * lval;
-                        sr += wt * rv;
-                        sg += wt * g;
-                    }
-                    if n < 4 || sw <= 0.0 {
-                        ok = false;
-                        break;
-                    }
-                    let (ml, mr, mg) = (sl / sw, sr / sw, sg / sw);
-                    let (mut vl, mut vr) = (0f32, 0f32);
-                    for s in &samples[..n] {
-                        vl += s.3 * (s.0 - ml) * (s.0 - ml);
-                        vr += s.3 * (s.1 - mr) * (s.1 - mr);
-                    }
-                    let gain = if vl > 1e-3 { (vr / vl).sqrt() } else { 1.0 };
-                    let (mut eg, mut gg) = (0f32, 0f32);
-                    for s in &samples[..n] {
-                        // Residual of L(p) ≈ R(p − d): moving d by δ changes R by −g·δ.
-                        let e = (s.0 - ml) * gain - (s.1 - mr);
-                        let g = s.2 - mg;
-                        eg += s.3 * e * g;
-                        gg += s.3 * g * g;
-                    }
-                    if gg < 4.0 * sw {
-                        // Under ~2 grey levels per pixel of horizontal gradient: no reliable texture.
-                        ok = false;
-                        break;
-                    }
-                    let delta = (-eg / gg).clamp(-0.5, 0.5);
-                    d += delta;
-                    if delta.abs() < 0.005 {
-                        break;
-                    }
-                }
-                if ok && d.is_finite() && (d - d0).abs() <= 0.5 {
+                if let Some(d) = ctx.fit(x, y, d0) {
                     *o = d;
                 }
             }
         });
+}
+
+/// Inputs of the local fit of [`refine_locally`].
+struct LocalFit<'a> {
+    left: &'a Raster<u8>,
+    right: &'a Raster<u8>,
+    grad: &'a [f32],
+    similarity: &'a [f32; 256],
+    radius: usize,
+    iterations: u32,
+}
+
+impl LocalFit<'_> {
+    /// The refined disparity of pixel (x, y) from `d0`, or `None` to keep `d0`.
+    ///
+    /// One pass over the window per step accumulates weighted sums (values taken relative to the
+    /// centre's grey level, so the variances do not cancel in `f32`); means, variances and the
+    /// Gauss–Newton step follow from them.
+    #[inline]
+    fn fit(&self, x: usize, y: usize, d0: f32) -> Option<f32> {
+        let (w, h) = (self.left.width(), self.left.height());
+        let r = self.radius;
+        let centre = *self.left.get(x, y);
+        let cf = centre as f32;
+        let (y0, y1) = (y.saturating_sub(r), (y + r).min(h - 1));
+        let (x0, x1) = (x.saturating_sub(r), (x + r).min(w - 1));
+        let top = (w - 1) as f32;
+        let mut d = d0;
+        for _ in 0..self.iterations {
+            // Window columns whose match x − d lies inside the right image.
+            let lo = x0.max(d.max(0.0).ceil() as usize);
+            let hi_f = (top + d).floor();
+            if !hi_f.is_finite() || hi_f < lo as f32 {
+                return None;
+            }
+            let hi = x1.min(hi_f as usize);
+            if hi < lo {
+                return None;
+            }
+            let mut n = 0usize;
+            let (mut sw, mut sl, mut sr, mut sg) = (0f32, 0f32, 0f32, 0f32);
+            let (mut sll, mut srr, mut sgg, mut slg, mut srg) = (0f32, 0f32, 0f32, 0f32, 0f32);
+            for yy in y0..=y1 {
+                let lrow = &self.left.row(yy)[lo..=hi];
+                let rrow = self.right.row(yy);
+                let grow = &self.grad[yy * w..(yy + 1) * w];
+                for (i, &lv) in lrow.iter().enumerate() {
+                    let xs = (lo + i) as f32 - d;
+                    let xi = (xs as usize).min(w - 2);
+                    let f = xs - xi as f32;
+                    let rv = rrow[xi] as f32 * (1.0 - f) + rrow[xi + 1] as f32 * f - cf;
+                    let g = grow[xi] * (1.0 - f) + grow[xi + 1] * f;
+                    let wt = self.similarity[lv.abs_diff(centre) as usize];
+                    let l = lv as f32 - cf;
+                    sw += wt;
+                    sl += wt * l;
+                    sr += wt * rv;
+                    sg += wt * g;
+                    sll += wt * l * l;
+                    srr += wt * rv * rv;
+                    sgg += wt * g * g;
+                    slg += wt * l * g;
+                    srg += wt * rv * g;
+                }
+                n += hi + 1 - lo;
+            }
+            if n < 4 || sw <= 0.0 {
+                return None;
+            }
+            let (ml, mr, mg) = (sl / sw, sr / sw, sg / sw);
+            let vl = (sll - sw * ml * ml).max(0.0);
+            let vr = (srr - sw * mr * mr).max(0.0);
+            let gain = if vl > 1e-3 { (vr / vl).sqrt() } else { 1.0 };
+            // Residual of L(p) ≈ R(p − d): moving d by δ changes R by −g·δ.
+            let eg = gain * (slg - sw * ml * mg) - (srg - sw * mr * mg);
+            let gg = sgg - sw * mg * mg;
+            if gg < 4.0 * sw {
+                // Under ~2 grey levels per pixel of horizontal gradient: no reliable texture.
+                return None;
+            }
+            let delta = (-eg / gg).clamp(-0.5, 0.5);
+            d += delta;
+            if delta.abs() < 0.005 {
+                break;
+            }
+        }
+        (d.is_finite() && (d - d0).abs() <= 0.5).then_some(d)
+    }
 }
 
 #[cfg(test)]

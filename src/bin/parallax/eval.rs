@@ -236,6 +236,7 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
             ms: vec![],
             peer: false,
         };
+        let mut stages: Vec<(String, f64)> = Vec::new();
         for s in &scenes {
             let o = StereoOptions {
                 max_disparity: ndisp(s).saturating_sub(1).max(1),
@@ -245,6 +246,12 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
             row.scores
                 .push(score(&d.disparity, &s.truth, &s.mask, ndisp(s) as f32)?);
             row.ms.push(d.stats.total_ms);
+            for (stage, ms) in &d.stats.timings {
+                match stages.iter_mut().find(|(n, _)| n == stage) {
+                    Some(e) => e.1 += ms,
+                    None => stages.push((stage.clone(), *ms)),
+                }
+            }
             trace.record(
                 format!("stereo[{name}/{}]", s.name),
                 StageStatus::Computed,
@@ -252,6 +259,13 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
                 "eval",
             );
             bar.inc(1);
+        }
+        if !args.common.quiet {
+            let list: Vec<String> = stages
+                .iter()
+                .map(|(n, ms)| format!("{n} {ms:.0} ms"))
+                .collect();
+            eprintln!("parallax: {name}: stages over all pairs: {}", list.join(", "));
         }
         rows.push(row);
     }
