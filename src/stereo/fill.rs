@@ -131,27 +131,31 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
     };
     let mut mag = vec![0f32; w * h];
     let mut dir = vec![0u8; w * h];
-    for y in 0..h as isize {
-        for x in 0..w as isize {
-            let gx = (at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1))
-                - (at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1));
-            let gy = (at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1))
-                - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
-            let p = y as usize * w + x as usize;
-            mag[p] = (gx * gx + gy * gy).sqrt() / 4.0;
-            // Quantise the gradient direction to 0°, 45°, 90°, 135° (tan 22.5° ≈ 0.4142).
-            let (ax, ay) = (gx.abs(), gy.abs());
-            dir[p] = if ay <= 0.4142 * ax {
-                0
-            } else if ax <= 0.4142 * ay {
-                2
-            } else if (gx > 0.0) == (gy > 0.0) {
-                1
-            } else {
-                3
-            };
-        }
-    }
+    mag.par_chunks_mut(w)
+        .zip(dir.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (mag, dir))| {
+            let y = y as isize;
+            for x in 0..w as isize {
+                let gx = (at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1))
+                    - (at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1));
+                let gy = (at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1))
+                    - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
+                let p = x as usize;
+                mag[p] = (gx * gx + gy * gy).sqrt() / 4.0;
+                // Quantise the gradient direction to 0°, 45°, 90°, 135° (tan 22.5° ≈ 0.4142).
+                let (ax, ay) = (gx.abs(), gy.abs());
+                dir[p] = if ay <= 0.4142 * ax {
+                    0
+                } else if ax <= 0.4142 * ay {
+                    2
+                } else if (gx > 0.0) == (gy > 0.0) {
+                    1
+                } else {
+                    3
+                };
+            }
+        });
     let m = |x: isize, y: isize| {
         if x < 0 || y < 0 || x >= w as isize || y >= h as isize {
             0.0
@@ -160,7 +164,8 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
         }
     };
     let mut strong = vec![0u8; w * h]; // 0 none, 1 weak, 2 strong
-    for y in 0..h as isize {
+    strong.par_chunks_mut(w).enumerate().for_each(|(y, strong)| {
+        let y = y as isize;
         for x in 0..w as isize {
             let p = y as usize * w + x as usize;
             let (dx, dy) = match dir[p] {
@@ -171,10 +176,10 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
             };
             let v = mag[p];
             if v >= m(x + dx, y + dy) && v >= m(x - dx, y - dy) && v >= low {
-                strong[p] = if v >= high { 2 } else { 1 };
+                strong[x as usize] = if v >= high { 2 } else { 1 };
             }
         }
-    }
+    });
     // Hysteresis: weak edges connected to strong ones survive.
     let mut edge = vec![false; w * h];
     let mut stack: Vec<usize> = (0..w * h).filter(|&p| strong[p] == 2).collect();
@@ -225,8 +230,11 @@ pub fn smooth(
     }
     let (w, h) = (disparity.width(), disparity.height());
     let edges = canny(guide, 10.0, 30.0);
-    let reliability: Vec<f32> = (0..w * h)
-        .map(|p| confidence.pixels()[p].max(0.02) * if edges[p] { opts.edge_weight } else { 1.0 })
+    let reliability: Vec<f32> = confidence
+        .pixels()
+        .par_iter()
+        .zip(edges.par_iter())
+        .map(|(&c, &e)| c.max(0.02) * if e { opts.edge_weight } else { 1.0 })
         .collect();
     let taps = [0.25f32, 0.5, 0.25];
     let inv_sigma = 1.0 / opts.sigma_intensity.max(1e-3);
@@ -235,35 +243,54 @@ pub fn smooth(
     let mut dst = vec![0f32; w * h];
     for pass in 0..opts.passes {
         let spacing = 1isize << pass.min(10);
-        dst.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-            for (x, o) in out.iter_mut().enumerate() {
-                let p = y * w + x;
-                let (dp, ip) = (src[p], guide.pixels()[p]);
-                let (mut sum, mut weight) = (0f32, 0f32);
+        let prev = &src;
+        dst.par_chunks_mut(w).enumerate().for_each_init(
+            || (vec![0f32; w], vec![0f32; w]),
+            |(sum, weight), (y, out)| {
+                sum.fill(0.0);
+                weight.fill(0.0);
+                let centre = &prev[y * w..(y + 1) * w];
+                let grey = guide.row(y);
+                // Tap by tap over the whole row: no bounds logic in the inner loop.
                 for (j, ty) in taps.iter().enumerate() {
                     let qy = y as isize + (j as isize - 1) * spacing;
                     if qy < 0 || qy >= h as isize {
                         continue;
                     }
+                    let qy = qy as usize;
+                    let (drow, grow) = (&prev[qy * w..(qy + 1) * w], guide.row(qy));
+                    let rrow = &reliability[qy * w..(qy + 1) * w];
                     for (i, tx) in taps.iter().enumerate() {
-                        let qx = x as isize + (i as isize - 1) * spacing;
-                        if qx < 0 || qx >= w as isize {
-                            continue;
+                        let dx = (i as isize - 1) * spacing;
+                        let lo = (-dx).max(0) as usize;
+                        let hi = (w as isize - dx.max(0)).max(lo as isize) as usize;
+                        let t = tx * ty;
+                        let q0 = (lo as isize + dx) as usize;
+                        let n = hi - lo;
+                        for ((((((s, wt), &dp), &ip), &dq), &gq), &rq) in sum[lo..hi]
+                            .iter_mut()
+                            .zip(&mut weight[lo..hi])
+                            .zip(&centre[lo..hi])
+                            .zip(&grey[lo..hi])
+                            .zip(&drow[q0..q0 + n])
+                            .zip(&grow[q0..q0 + n])
+                            .zip(&rrow[q0..q0 + n])
+                        {
+                            let wq = if (dq - dp).abs() > opts.max_jump {
+                                0.0
+                            } else {
+                                t * rq * similarity[gq.abs_diff(ip) as usize]
+                            };
+                            *s += wq * dq;
+                            *wt += wq;
                         }
-                        let q = qy as usize * w + qx as usize;
-                        let dq = src[q];
-                        if (dq - dp).abs() > opts.max_jump {
-                            continue;
-                        }
-                        let di = guide.pixels()[q].abs_diff(ip) as usize;
-                        let wq = tx * ty * reliability[q] * similarity[di];
-                        sum += wq * dq;
-                        weight += wq;
                     }
                 }
-                *o = if weight > 1e-12 { sum / weight } else { dp };
-            }
-        });
+                for (((o, &s), &wt), &dp) in out.iter_mut().zip(&*sum).zip(&*weight).zip(centre) {
+                    *o = if wt > 1e-12 { s / wt } else { dp };
+                }
+            },
+        );
         std::mem::swap(&mut src, &mut dst);
     }
     disparity.pixels_mut().copy_from_slice(&src);

@@ -133,29 +133,35 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
     for x in 0..w {
         let s = &s_row[x * k..(x + 1) * k];
         let base = bases.map_or(0, |b| b[x] as usize);
-        let (mut bi, mut bv) = (0usize, u16::MAX);
-        for (i, &v) in s.iter().enumerate() {
-            if v < bv {
-                bv = v;
-                bi = i;
-            }
-            let d = base + i;
-            if d <= x && v < right_cost[x - d] {
-                right_cost[x - d] = v;
-                right_best[x - d] = d as u32;
+        // Winner: the first index of the minimum (the minimum alone vectorises).
+        let bv = s.iter().copied().min().unwrap_or(u16::MAX);
+        let bi = s.iter().position(|&v| v == bv).unwrap_or(0);
+        // Right view: disparities d = base + i ≤ x only.
+        let valid = if x >= base { (x - base + 1).min(k) } else { 0 };
+        for (i, &v) in s[..valid].iter().enumerate() {
+            let j = x - base - i;
+            if v < right_cost[j] {
+                right_cost[j] = v;
+                right_best[j] = (base + i) as u32;
             }
         }
         best_left[x] = (base + bi) as u32;
         let u = bv.saturating_sub(agg.min_sum[y * w + x]) as f32;
         conf[x] = 1.0 / (1.0 + u / unit);
         if opts.uniqueness > 0 {
-            let limit = bv as u64 * 100;
-            let unique = s.iter().enumerate().all(|(i, &v)| {
-                i.abs_diff(bi) <= 1 || v as u64 * (100 - opts.uniqueness as u64) >= limit
-            });
-            if !unique {
-                st[x] = PixelState::Mismatch;
-                continue;
+            // Unique when every disparity not adjacent to the winner costs at least
+            // bv / (1 − uniqueness): compare the smallest of them once.
+            let below = s[..bi.saturating_sub(1)].iter().copied().min();
+            let above = s.get(bi + 2..).and_then(|t| t.iter().copied().min());
+            let other = match (below, above) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            };
+            if let Some(v) = other {
+                if (v as u64) * (100 - opts.uniqueness as u64) < bv as u64 * 100 {
+                    st[x] = PixelState::Mismatch;
+                    continue;
+                }
             }
         }
         let off = if bi > 0 && bi + 1 < k {
@@ -177,14 +183,22 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
         }
         // Hirschmüller's rule: a failed pixel is occluded when no disparity at all would
         // pass the check (its true match is hidden), and a mismatch otherwise.
+        // Pixel x at disparity d = x − xr passes when |right_best[xr] − d| ≤ tol, i.e. when x lies
+        // within tol of xr + right_best[xr]: mark those x once per right pixel instead of trying
+        // every disparity of every failed pixel.
         let top = bases.map_or(k, |b| b.iter().map(|&v| v as usize + k).max().unwrap_or(k));
-        for x in 0..w {
-            if st[x] == PixelState::Valid {
-                continue;
+        let tol = tol as usize;
+        let mut reachable = vec![false; w];
+        for (xr, &rb) in right_best.iter().enumerate() {
+            let t = xr + rb as usize;
+            let lo = t.saturating_sub(tol).max(xr);
+            let hi = (t + tol).min(xr + top - 1).min(w - 1);
+            for r in reachable.iter_mut().take(hi + 1).skip(lo) {
+                *r = true;
             }
-            let consistent =
-                (0..top.min(x + 1)).any(|d| right_best[x - d].abs_diff(d as u32) <= tol);
-            if !consistent {
+        }
+        for x in 0..w {
+            if st[x] != PixelState::Valid && !reachable[x] {
                 st[x] = PixelState::Occluded;
             }
         }
