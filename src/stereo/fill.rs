@@ -39,50 +39,28 @@ pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
         disparity.pixels_mut().fill(0.0);
         return holes.len();
     }
-    let mut slot = vec![u32::MAX; w * h];
-    for (i, &p) in holes.iter().enumerate() {
-        slot[p] = i as u32;
-    }
-    let mut candidates = vec![[f32::NAN; 8]; holes.len()];
-    let mut last = vec![f32::NAN; w * h];
-    let dirs: [(isize, isize); 8] = [
-        (1, 0),
-        (-1, 0),
-        (0, 1),
-        (0, -1),
-        (1, 1),
-        (-1, -1),
-        (1, -1),
-        (-1, 1),
-    ];
+    // One scan per direction (in parallel): `last` carries the nearest valid value seen along
+    // the direction, and each hole reads it.
     let src = disparity.pixels();
-    for (n, &(dx, dy)) in dirs.iter().enumerate() {
-        // Visit pixels so that p − (dx, dy) comes before p.
-        for yi in 0..h {
-            let y = if dy >= 0 { yi } else { h - 1 - yi };
-            for xi in 0..w {
-                let x = if dx >= 0 { xi } else { w - 1 - xi };
-                let p = y * w + x;
-                let v = src[p];
-                let (qx, qy) = (x as isize - dx, y as isize - dy);
-                last[p] = if !v.is_nan() {
-                    v
-                } else if qx >= 0 && qy >= 0 && (qx as usize) < w && (qy as usize) < h {
-                    last[qy as usize * w + qx as usize]
-                } else {
-                    f32::NAN
-                };
-                if slot[p] != u32::MAX && v.is_nan() {
-                    candidates[slot[p] as usize][n] = last[p];
-                }
-            }
-        }
-    }
+    let per_dir: Vec<Vec<f32>> = DIRECTIONS
+        .par_iter()
+        .map(|&(dx, dy)| scan_direction(src, w, h, dx, dy, &holes))
+        .collect();
+    let candidates: Vec<[f32; 8]> = (0..holes.len())
+        .into_par_iter()
+        .map(|i| std::array::from_fn(|n| per_dir[n][i]))
+        .collect();
     let values: Vec<f32> = holes
         .par_iter()
         .zip(candidates.par_iter())
         .map(|(&p, c)| {
-            let mut v: Vec<f32> = c.iter().copied().filter(|v| !v.is_nan()).collect();
+            let mut buf = [0f32; 8];
+            let mut len = 0;
+            for &x in c.iter().filter(|v| !v.is_nan()) {
+                buf[len] = x;
+                len += 1;
+            }
+            let v = &mut buf[..len];
             v.sort_by(f32::total_cmp);
             // An occlusion lies beside a nearer object on its row: the smaller of the two row
             // neighbours is the background. A mismatch between row neighbours at different depths
@@ -117,6 +95,50 @@ pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
         }
     }
     holes.len()
+}
+
+/// The 8 search directions of [`fill_holes`]: right, left, down, up, then the diagonals.
+const DIRECTIONS: [(isize, isize); 8] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (-1, -1),
+    (1, -1),
+    (-1, 1),
+];
+
+/// For each hole (ascending pixel indices), the nearest valid value met walking from it against
+/// direction `(dx, dy)`; NaN when the walk leaves the image first.
+fn scan_direction(
+    src: &[f32],
+    w: usize,
+    h: usize,
+    dx: isize,
+    dy: isize,
+    holes: &[usize],
+) -> Vec<f32> {
+    let mut last = vec![f32::NAN; w * h];
+    // Visit pixels so that p − (dx, dy) comes before p.
+    for yi in 0..h {
+        let y = if dy >= 0 { yi } else { h - 1 - yi };
+        let qy = y as isize - dy;
+        for xi in 0..w {
+            let x = if dx >= 0 { xi } else { w - 1 - xi };
+            let p = y * w + x;
+            let v = src[p];
+            let qx = x as isize - dx;
+            last[p] = if !v.is_nan() {
+                v
+            } else if qx >= 0 && qy >= 0 && (qx as usize) < w && (qy as usize) < h {
+                last[qy as usize * w + qx as usize]
+            } else {
+                f32::NAN
+            };
+        }
+    }
+    holes.iter().map(|&p| last[p]).collect()
 }
 
 /// Canny edges of a grey image (Sobel gradient, non-maximum suppression, hysteresis with
