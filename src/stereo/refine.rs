@@ -353,6 +353,18 @@ impl LocalFit<'_> {
         let cf = centre as f32;
         let (y0, y1) = (y.saturating_sub(r), (y + r).min(h - 1));
         let (x0, x1) = (x.saturating_sub(r), (x + r).min(w - 1));
+        let cols = x1 + 1 - x0;
+        // The window's weights and left values (relative to the centre) do not depend on d:
+        // once per pixel, row-major with `cols` columns (radius ≤ 4: at most 81).
+        let mut wt = [0f32; 81];
+        let mut lv = [0f32; 81];
+        for (j, yy) in (y0..=y1).enumerate() {
+            let row = &self.left.row(yy)[x0..=x1];
+            for (i, &v) in row.iter().enumerate() {
+                wt[j * cols + i] = self.similarity[v.abs_diff(centre) as usize];
+                lv[j * cols + i] = v as f32 - cf;
+            }
+        }
         let top = (w - 1) as f32;
         let mut d = d0;
         for _ in 0..self.iterations {
@@ -366,33 +378,43 @@ impl LocalFit<'_> {
             if hi < lo {
                 return None;
             }
-            let mut n = 0usize;
+            let n_cols = hi + 1 - lo;
+            // Column lo + i matches xs = lo + i − d = xi0 + i + f: one fraction for the window.
+            let xs0 = lo as f32 - d;
+            let mut xi0 = xs0 as usize;
+            let mut f = xs0 - xi0 as f32;
+            if xi0 + n_cols >= w {
+                // The last match is exactly the last column (f = 0): read it as 1 × the next.
+                if xi0 == 0 {
+                    return None;
+                }
+                xi0 -= 1;
+                f += 1.0;
+            }
             let (mut sw, mut sl, mut sr, mut sg) = (0f32, 0f32, 0f32, 0f32);
             let (mut sll, mut srr, mut sgg, mut slg, mut srg) = (0f32, 0f32, 0f32, 0f32, 0f32);
-            for yy in y0..=y1 {
-                let lrow = &self.left.row(yy)[lo..=hi];
-                let rrow = self.right.row(yy);
-                let grow = &self.grad[yy * w..(yy + 1) * w];
-                for (i, &lv) in lrow.iter().enumerate() {
-                    let xs = (lo + i) as f32 - d;
-                    let xi = (xs as usize).min(w - 2);
-                    let f = xs - xi as f32;
-                    let rv = rrow[xi] as f32 * (1.0 - f) + rrow[xi + 1] as f32 * f - cf;
-                    let g = grow[xi] * (1.0 - f) + grow[xi + 1] * f;
-                    let wt = self.similarity[lv.abs_diff(centre) as usize];
-                    let l = lv as f32 - cf;
-                    sw += wt;
-                    sl += wt * l;
-                    sr += wt * rv;
-                    sg += wt * g;
-                    sll += wt * l * l;
-                    srr += wt * rv * rv;
-                    sgg += wt * g * g;
-                    slg += wt * l * g;
-                    srg += wt * rv * g;
+            for (j, yy) in (y0..=y1).enumerate() {
+                let at = j * cols + (lo - x0);
+                let (wts, ls) = (&wt[at..at + n_cols], &lv[at..at + n_cols]);
+                let rrow = &self.right.row(yy)[xi0..xi0 + n_cols + 1];
+                let grow = &self.grad[yy * w + xi0..yy * w + xi0 + n_cols + 1];
+                for i in 0..n_cols {
+                    let (r0, r1) = (rrow[i] as f32, rrow[i + 1] as f32);
+                    let rv = r0 + f * (r1 - r0) - cf;
+                    let g = grow[i] + f * (grow[i + 1] - grow[i]);
+                    let (q, l) = (wts[i], ls[i]);
+                    sw += q;
+                    sl += q * l;
+                    sr += q * rv;
+                    sg += q * g;
+                    sll += q * l * l;
+                    srr += q * rv * rv;
+                    sgg += q * g * g;
+                    slg += q * l * g;
+                    srg += q * rv * g;
                 }
-                n += hi + 1 - lo;
             }
+            let n = n_cols * (y1 + 1 - y0);
             if n < 4 || sw <= 0.0 {
                 return None;
             }
