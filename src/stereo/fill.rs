@@ -186,22 +186,25 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
         }
     };
     let mut strong = vec![0u8; w * h]; // 0 none, 1 weak, 2 strong
-    strong.par_chunks_mut(w).enumerate().for_each(|(y, strong)| {
-        let y = y as isize;
-        for x in 0..w as isize {
-            let p = y as usize * w + x as usize;
-            let (dx, dy) = match dir[p] {
-                0 => (1, 0),
-                1 => (1, 1),
-                2 => (0, 1),
-                _ => (-1, 1),
-            };
-            let v = mag[p];
-            if v >= m(x + dx, y + dy) && v >= m(x - dx, y - dy) && v >= low {
-                strong[x as usize] = if v >= high { 2 } else { 1 };
+    strong
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, strong)| {
+            let y = y as isize;
+            for x in 0..w as isize {
+                let p = y as usize * w + x as usize;
+                let (dx, dy) = match dir[p] {
+                    0 => (1, 0),
+                    1 => (1, 1),
+                    2 => (0, 1),
+                    _ => (-1, 1),
+                };
+                let v = mag[p];
+                if v >= m(x + dx, y + dy) && v >= m(x - dx, y - dy) && v >= low {
+                    strong[x as usize] = if v >= high { 2 } else { 1 };
+                }
             }
-        }
-    });
+        });
     // Hysteresis: weak edges connected to strong ones survive.
     let mut edge = vec![false; w * h];
     let mut stack: Vec<usize> = (0..w * h).filter(|&p| strong[p] == 2).collect();

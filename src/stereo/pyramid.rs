@@ -49,32 +49,35 @@ pub fn window_bases(
     let (cw, ch) = (coarse.width(), coarse.height());
     let top = (max_disparity + 1).saturating_sub(k);
     let mut bases = vec![0u16; width * height];
-    bases.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
-        let cy = (y / 2).min(ch - 1);
-        for (x, b) in row.iter_mut().enumerate() {
-            let cx = (x / 2).min(cw - 1);
-            let own = 2.0 * coarse.get(cx, cy);
-            let (mut lo, mut hi) = (own, own);
-            for qy in cy.saturating_sub(1)..=(cy + 1).min(ch - 1) {
-                for qx in cx.saturating_sub(1)..=(cx + 1).min(cw - 1) {
-                    let v = 2.0 * coarse.get(qx, qy);
-                    lo = lo.min(v);
-                    hi = hi.max(v);
+    bases
+        .par_chunks_mut(width)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let cy = (y / 2).min(ch - 1);
+            for (x, b) in row.iter_mut().enumerate() {
+                let cx = (x / 2).min(cw - 1);
+                let own = 2.0 * coarse.get(cx, cy);
+                let (mut lo, mut hi) = (own, own);
+                for qy in cy.saturating_sub(1)..=(cy + 1).min(ch - 1) {
+                    for qx in cx.saturating_sub(1)..=(cx + 1).min(cw - 1) {
+                        let v = 2.0 * coarse.get(qx, qy);
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                    }
                 }
+                let centre = if hi - lo + 4.0 <= k as f32 {
+                    0.5 * (lo + hi)
+                } else {
+                    own
+                };
+                let start = (centre - k as f32 / 2.0).round();
+                *b = if start.is_finite() {
+                    start.clamp(0.0, top as f32) as u16
+                } else {
+                    0
+                };
             }
-            let centre = if hi - lo + 4.0 <= k as f32 {
-                0.5 * (lo + hi)
-            } else {
-                own
-            };
-            let start = (centre - k as f32 / 2.0).round();
-            *b = if start.is_finite() {
-                start.clamp(0.0, top as f32) as u16
-            } else {
-                0
-            };
-        }
-    });
+        });
     bases
 }
 

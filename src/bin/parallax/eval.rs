@@ -289,7 +289,10 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
                 .iter()
                 .map(|(n, ms)| format!("{n} {ms:.0} ms"))
                 .collect();
-            eprintln!("parallax: {name}: stages over all pairs: {}", list.join(", "));
+            eprintln!(
+                "parallax: {name}: stages over all pairs: {}",
+                list.join(", ")
+            );
         }
         rows.push(row);
     }
