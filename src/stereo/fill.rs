@@ -292,23 +292,17 @@ pub fn smooth(
                         let t = tx * ty;
                         let q0 = (lo as isize + dx) as usize;
                         let n = hi - lo;
-                        for ((((((s, wt), &dp), &ip), &dq), &gq), &rq) in sum[lo..hi]
-                            .iter_mut()
-                            .zip(&mut weight[lo..hi])
-                            .zip(&centre[lo..hi])
-                            .zip(&grey[lo..hi])
-                            .zip(&drow[q0..q0 + n])
-                            .zip(&grow[q0..q0 + n])
-                            .zip(&rrow[q0..q0 + n])
-                        {
-                            let wq = if (dq - dp).abs() > opts.max_jump {
-                                0.0
-                            } else {
-                                t * rq * similarity[gq.abs_diff(ip) as usize]
-                            };
-                            *s += wq * dq;
-                            *wt += wq;
-                        }
+                        let tap = Tap {
+                            centre: &centre[lo..hi],
+                            grey: &grey[lo..hi],
+                            disparity: &drow[q0..q0 + n],
+                            guide: &grow[q0..q0 + n],
+                            reliability: &rrow[q0..q0 + n],
+                            similarity: &similarity,
+                            weight: t,
+                            max_jump: opts.max_jump,
+                        };
+                        add_tap_fast(&tap, &mut sum[lo..hi], &mut weight[lo..hi]);
                     }
                 }
                 for (((o, &s), &wt), &dp) in out.iter_mut().zip(&*sum).zip(&*weight).zip(centre) {
@@ -319,6 +313,42 @@ pub fn smooth(
         std::mem::swap(&mut src, &mut dst);
     }
     disparity.pixels_mut().copy_from_slice(&src);
+}
+
+/// One tap of a smoothing pass over a run of pixels: the centres' values and the neighbours'.
+struct Tap<'a> {
+    centre: &'a [f32],
+    grey: &'a [u8],
+    disparity: &'a [f32],
+    guide: &'a [u8],
+    reliability: &'a [f32],
+    similarity: &'a [f32],
+    weight: f32,
+    max_jump: f32,
+}
+
+crate::avx2_variant!(fn add_tap_fast<'a, 'b>(tap: &'b Tap<'a>, sum: &'b mut [f32], weight: &'b mut [f32]) => add_tap);
+
+/// Adds the tap's weighted neighbours into `sum` and their weights into `weight`.
+#[inline(always)]
+fn add_tap(tap: &Tap<'_>, sum: &mut [f32], weight: &mut [f32]) {
+    for ((((((s, wt), &dp), &ip), &dq), &gq), &rq) in sum
+        .iter_mut()
+        .zip(weight.iter_mut())
+        .zip(tap.centre)
+        .zip(tap.grey)
+        .zip(tap.disparity)
+        .zip(tap.guide)
+        .zip(tap.reliability)
+    {
+        let wq = if (dq - dp).abs() > tap.max_jump {
+            0.0
+        } else {
+            tap.weight * rq * tap.similarity[gq.abs_diff(ip) as usize]
+        };
+        *s += wq * dq;
+        *wt += wq;
+    }
 }
 
 #[cfg(test)]

@@ -316,17 +316,22 @@ pub fn refine_locally(
         .pixels_mut()
         .par_chunks_mut(w)
         .enumerate()
-        .for_each(|(y, out)| {
-            for (x, o) in out.iter_mut().enumerate() {
-                let d0 = src[y * w + x];
-                if d0.is_nan() {
-                    continue;
-                }
-                if let Some(d) = ctx.fit(x, y, d0) {
-                    *o = d;
-                }
-            }
-        });
+        .for_each(|(y, out)| refine_row_fast(&ctx, &src[y * w..(y + 1) * w], y, out));
+}
+
+crate::avx2_variant!(fn refine_row_fast<'a, 'b>(ctx: &'b LocalFit<'a>, src: &'b [f32], y: usize, out: &'b mut [f32]) => refine_row);
+
+/// [`LocalFit::fit`] on every estimate of row `y` (`src` the row before refinement).
+#[inline(always)]
+fn refine_row(ctx: &LocalFit<'_>, src: &[f32], y: usize, out: &mut [f32]) {
+    for (x, (o, &d0)) in out.iter_mut().zip(src).enumerate() {
+        if d0.is_nan() {
+            continue;
+        }
+        if let Some(d) = ctx.fit(x, y, d0) {
+            *o = d;
+        }
+    }
 }
 
 /// Inputs of the local fit of [`refine_locally`].
@@ -345,7 +350,7 @@ impl LocalFit<'_> {
     /// One pass over the window per step accumulates weighted sums (values taken relative to the
     /// centre's grey level, so the variances do not cancel in `f32`); means, variances and the
     /// Gauss–Newton step follow from them.
-    #[inline]
+    #[inline(always)]
     fn fit(&self, x: usize, y: usize, d0: f32) -> Option<f32> {
         let (w, h) = (self.left.width(), self.left.height());
         let r = self.radius;
