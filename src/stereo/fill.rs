@@ -39,50 +39,28 @@ pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
         disparity.pixels_mut().fill(0.0);
         return holes.len();
     }
-    let mut slot = vec![u32::MAX; w * h];
-    for (i, &p) in holes.iter().enumerate() {
-        slot[p] = i as u32;
-    }
-    let mut candidates = vec![[f32::NAN; 8]; holes.len()];
-    let mut last = vec![f32::NAN; w * h];
-    let dirs: [(isize, isize); 8] = [
-        (1, 0),
-        (-1, 0),
-        (0, 1),
-        (0, -1),
-        (1, 1),
-        (-1, -1),
-        (1, -1),
-        (-1, 1),
-    ];
+    // One scan per direction (in parallel): `last` carries the nearest valid value seen along
+    // the direction, and each hole reads it.
     let src = disparity.pixels();
-    for (n, &(dx, dy)) in dirs.iter().enumerate() {
-        // Visit pixels so that p − (dx, dy) comes before p.
-        for yi in 0..h {
-            let y = if dy >= 0 { yi } else { h - 1 - yi };
-            for xi in 0..w {
-                let x = if dx >= 0 { xi } else { w - 1 - xi };
-                let p = y * w + x;
-                let v = src[p];
-                let (qx, qy) = (x as isize - dx, y as isize - dy);
-                last[p] = if !v.is_nan() {
-                    v
-                } else if qx >= 0 && qy >= 0 && (qx as usize) < w && (qy as usize) < h {
-                    last[qy as usize * w + qx as usize]
-                } else {
-                    f32::NAN
-                };
-                if slot[p] != u32::MAX && v.is_nan() {
-                    candidates[slot[p] as usize][n] = last[p];
-                }
-            }
-        }
-    }
+    let per_dir: Vec<Vec<f32>> = DIRECTIONS
+        .par_iter()
+        .map(|&(dx, dy)| scan_direction(src, w, h, dx, dy, &holes))
+        .collect();
+    let candidates: Vec<[f32; 8]> = (0..holes.len())
+        .into_par_iter()
+        .map(|i| std::array::from_fn(|n| per_dir[n][i]))
+        .collect();
     let values: Vec<f32> = holes
         .par_iter()
         .zip(candidates.par_iter())
         .map(|(&p, c)| {
-            let mut v: Vec<f32> = c.iter().copied().filter(|v| !v.is_nan()).collect();
+            let mut buf = [0f32; 8];
+            let mut len = 0;
+            for &x in c.iter().filter(|v| !v.is_nan()) {
+                buf[len] = x;
+                len += 1;
+            }
+            let v = &mut buf[..len];
             v.sort_by(f32::total_cmp);
             // An occlusion lies beside a nearer object on its row: the smaller of the two row
             // neighbours is the background. A mismatch between row neighbours at different depths
@@ -119,6 +97,50 @@ pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
     holes.len()
 }
 
+/// The 8 search directions of [`fill_holes`]: right, left, down, up, then the diagonals.
+const DIRECTIONS: [(isize, isize); 8] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (-1, -1),
+    (1, -1),
+    (-1, 1),
+];
+
+/// For each hole (ascending pixel indices), the nearest valid value met walking from it against
+/// direction `(dx, dy)`; NaN when the walk leaves the image first.
+fn scan_direction(
+    src: &[f32],
+    w: usize,
+    h: usize,
+    dx: isize,
+    dy: isize,
+    holes: &[usize],
+) -> Vec<f32> {
+    let mut last = vec![f32::NAN; w * h];
+    // Visit pixels so that p − (dx, dy) comes before p.
+    for yi in 0..h {
+        let y = if dy >= 0 { yi } else { h - 1 - yi };
+        let qy = y as isize - dy;
+        for xi in 0..w {
+            let x = if dx >= 0 { xi } else { w - 1 - xi };
+            let p = y * w + x;
+            let v = src[p];
+            let qx = x as isize - dx;
+            last[p] = if !v.is_nan() {
+                v
+            } else if qx >= 0 && qy >= 0 && (qx as usize) < w && (qy as usize) < h {
+                last[qy as usize * w + qx as usize]
+            } else {
+                f32::NAN
+            };
+        }
+    }
+    holes.iter().map(|&p| last[p]).collect()
+}
+
 /// Canny edges of a grey image (Sobel gradient, non-maximum suppression, hysteresis with
 /// thresholds `low`, `high` in grey levels per pixel). `true` = edge.
 pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
@@ -131,27 +153,31 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
     };
     let mut mag = vec![0f32; w * h];
     let mut dir = vec![0u8; w * h];
-    for y in 0..h as isize {
-        for x in 0..w as isize {
-            let gx = (at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1))
-                - (at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1));
-            let gy = (at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1))
-                - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
-            let p = y as usize * w + x as usize;
-            mag[p] = (gx * gx + gy * gy).sqrt() / 4.0;
-            // Quantise the gradient direction to 0°, 45°, 90°, 135° (tan 22.5° ≈ 0.4142).
-            let (ax, ay) = (gx.abs(), gy.abs());
-            dir[p] = if ay <= 0.4142 * ax {
-                0
-            } else if ax <= 0.4142 * ay {
-                2
-            } else if (gx > 0.0) == (gy > 0.0) {
-                1
-            } else {
-                3
-            };
-        }
-    }
+    mag.par_chunks_mut(w)
+        .zip(dir.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (mag, dir))| {
+            let y = y as isize;
+            for x in 0..w as isize {
+                let gx = (at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1))
+                    - (at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1));
+                let gy = (at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1))
+                    - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
+                let p = x as usize;
+                mag[p] = (gx * gx + gy * gy).sqrt() / 4.0;
+                // Quantise the gradient direction to 0°, 45°, 90°, 135° (tan 22.5° ≈ 0.4142).
+                let (ax, ay) = (gx.abs(), gy.abs());
+                dir[p] = if ay <= 0.4142 * ax {
+                    0
+                } else if ax <= 0.4142 * ay {
+                    2
+                } else if (gx > 0.0) == (gy > 0.0) {
+                    1
+                } else {
+                    3
+                };
+            }
+        });
     let m = |x: isize, y: isize| {
         if x < 0 || y < 0 || x >= w as isize || y >= h as isize {
             0.0
@@ -160,21 +186,25 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
         }
     };
     let mut strong = vec![0u8; w * h]; // 0 none, 1 weak, 2 strong
-    for y in 0..h as isize {
-        for x in 0..w as isize {
-            let p = y as usize * w + x as usize;
-            let (dx, dy) = match dir[p] {
-                0 => (1, 0),
-                1 => (1, 1),
-                2 => (0, 1),
-                _ => (-1, 1),
-            };
-            let v = mag[p];
-            if v >= m(x + dx, y + dy) && v >= m(x - dx, y - dy) && v >= low {
-                strong[p] = if v >= high { 2 } else { 1 };
+    strong
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, strong)| {
+            let y = y as isize;
+            for x in 0..w as isize {
+                let p = y as usize * w + x as usize;
+                let (dx, dy) = match dir[p] {
+                    0 => (1, 0),
+                    1 => (1, 1),
+                    2 => (0, 1),
+                    _ => (-1, 1),
+                };
+                let v = mag[p];
+                if v >= m(x + dx, y + dy) && v >= m(x - dx, y - dy) && v >= low {
+                    strong[x as usize] = if v >= high { 2 } else { 1 };
+                }
             }
-        }
-    }
+        });
     // Hysteresis: weak edges connected to strong ones survive.
     let mut edge = vec![false; w * h];
     let mut stack: Vec<usize> = (0..w * h).filter(|&p| strong[p] == 2).collect();
@@ -225,8 +255,11 @@ pub fn smooth(
     }
     let (w, h) = (disparity.width(), disparity.height());
     let edges = canny(guide, 10.0, 30.0);
-    let reliability: Vec<f32> = (0..w * h)
-        .map(|p| confidence.pixels()[p].max(0.02) * if edges[p] { opts.edge_weight } else { 1.0 })
+    let reliability: Vec<f32> = confidence
+        .pixels()
+        .par_iter()
+        .zip(edges.par_iter())
+        .map(|(&c, &e)| c.max(0.02) * if e { opts.edge_weight } else { 1.0 })
         .collect();
     let taps = [0.25f32, 0.5, 0.25];
     let inv_sigma = 1.0 / opts.sigma_intensity.max(1e-3);
@@ -235,38 +268,87 @@ pub fn smooth(
     let mut dst = vec![0f32; w * h];
     for pass in 0..opts.passes {
         let spacing = 1isize << pass.min(10);
-        dst.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-            for (x, o) in out.iter_mut().enumerate() {
-                let p = y * w + x;
-                let (dp, ip) = (src[p], guide.pixels()[p]);
-                let (mut sum, mut weight) = (0f32, 0f32);
+        let prev = &src;
+        dst.par_chunks_mut(w).enumerate().for_each_init(
+            || (vec![0f32; w], vec![0f32; w]),
+            |(sum, weight), (y, out)| {
+                sum.fill(0.0);
+                weight.fill(0.0);
+                let centre = &prev[y * w..(y + 1) * w];
+                let grey = guide.row(y);
+                // Tap by tap over the whole row: no bounds logic in the inner loop.
                 for (j, ty) in taps.iter().enumerate() {
                     let qy = y as isize + (j as isize - 1) * spacing;
                     if qy < 0 || qy >= h as isize {
                         continue;
                     }
+                    let qy = qy as usize;
+                    let (drow, grow) = (&prev[qy * w..(qy + 1) * w], guide.row(qy));
+                    let rrow = &reliability[qy * w..(qy + 1) * w];
                     for (i, tx) in taps.iter().enumerate() {
-                        let qx = x as isize + (i as isize - 1) * spacing;
-                        if qx < 0 || qx >= w as isize {
-                            continue;
-                        }
-                        let q = qy as usize * w + qx as usize;
-                        let dq = src[q];
-                        if (dq - dp).abs() > opts.max_jump {
-                            continue;
-                        }
-                        let di = guide.pixels()[q].abs_diff(ip) as usize;
-                        let wq = tx * ty * reliability[q] * similarity[di];
-                        sum += wq * dq;
-                        weight += wq;
+                        let dx = (i as isize - 1) * spacing;
+                        let lo = (-dx).max(0) as usize;
+                        let hi = (w as isize - dx.max(0)).max(lo as isize) as usize;
+                        let t = tx * ty;
+                        let q0 = (lo as isize + dx) as usize;
+                        let n = hi - lo;
+                        let tap = Tap {
+                            centre: &centre[lo..hi],
+                            grey: &grey[lo..hi],
+                            disparity: &drow[q0..q0 + n],
+                            guide: &grow[q0..q0 + n],
+                            reliability: &rrow[q0..q0 + n],
+                            similarity: &similarity,
+                            weight: t,
+                            max_jump: opts.max_jump,
+                        };
+                        add_tap_fast(&tap, &mut sum[lo..hi], &mut weight[lo..hi]);
                     }
                 }
-                *o = if weight > 1e-12 { sum / weight } else { dp };
-            }
-        });
+                for (((o, &s), &wt), &dp) in out.iter_mut().zip(&*sum).zip(&*weight).zip(centre) {
+                    *o = if wt > 1e-12 { s / wt } else { dp };
+                }
+            },
+        );
         std::mem::swap(&mut src, &mut dst);
     }
     disparity.pixels_mut().copy_from_slice(&src);
+}
+
+/// One tap of a smoothing pass over a run of pixels: the centres' values and the neighbours'.
+struct Tap<'a> {
+    centre: &'a [f32],
+    grey: &'a [u8],
+    disparity: &'a [f32],
+    guide: &'a [u8],
+    reliability: &'a [f32],
+    similarity: &'a [f32],
+    weight: f32,
+    max_jump: f32,
+}
+
+crate::avx2_variant!(fn add_tap_fast<'a, 'b>(tap: &'b Tap<'a>, sum: &'b mut [f32], weight: &'b mut [f32]) => add_tap);
+
+/// Adds the tap's weighted neighbours into `sum` and their weights into `weight`.
+#[inline(always)]
+fn add_tap(tap: &Tap<'_>, sum: &mut [f32], weight: &mut [f32]) {
+    for ((((((s, wt), &dp), &ip), &dq), &gq), &rq) in sum
+        .iter_mut()
+        .zip(weight.iter_mut())
+        .zip(tap.centre)
+        .zip(tap.grey)
+        .zip(tap.disparity)
+        .zip(tap.guide)
+        .zip(tap.reliability)
+    {
+        let wq = if (dq - dp).abs() > tap.max_jump {
+            0.0
+        } else {
+            tap.weight * rq * tap.similarity[gq.abs_diff(ip) as usize]
+        };
+        *s += wq * dq;
+        *wt += wq;
+    }
 }
 
 #[cfg(test)]

@@ -66,7 +66,8 @@ pub struct StereoStats {
     /// Wall-clock milliseconds of each sub-stage in order: `stereo.prepare`, `stereo.rectify`,
     /// `stereo.coarse`, `stereo.cost` (census transform; per-row costs are computed inside
     /// aggregation and counted there), `stereo.aggregate`, `stereo.decide`, `stereo.speckle`, `stereo.refine`,
-    /// `stereo.fill`, `stereo.smooth`. Steps that did not run are absent.
+    /// `stereo.fill`, `stereo.smooth`; after `stereo.coarse` come the half-size level's own steps
+    /// as `stereo.coarse.cost`, … (parts of `stereo.coarse`). Steps that did not run are absent.
     pub timings: Vec<(String, f64)>,
     /// Total matching time, milliseconds (decoded images in, disparity out).
     pub total_ms: f64,
@@ -181,6 +182,11 @@ pub(crate) fn match_grey(
         stats
             .timings
             .push(("stereo.coarse".into(), start.elapsed().as_secs_f64() * 1e3));
+        // The coarse level's own stages follow, as `stereo.coarse.cost`, … (inside the above).
+        for (name, ms) in coarse_stats.timings {
+            let sub = name.strip_prefix("stereo.").unwrap_or(&name);
+            stats.timings.push((format!("stereo.coarse.{sub}"), ms));
+        }
         (Some(bases), k)
     } else {
         (None, levels)

@@ -2,6 +2,8 @@
 //! matched there over half the range, and each full-size pixel then searches only a window of
 //! disparities around twice the coarse answer.
 
+use rayon::prelude::*;
+
 use crate::image::Raster;
 
 /// Gaussian reduce: 5-tap binomial filter `[1 4 6 4 1]/16` in x and y, then every second pixel.
@@ -12,22 +14,26 @@ pub fn reduce(image: &Raster<u8>) -> Raster<u8> {
     let clamp = |v: isize, n: usize| v.clamp(0, n as isize - 1) as usize;
     // Horizontal pass on every row, at the coarse columns only.
     let mut tmp = vec![0u32; cw * h];
-    for y in 0..h {
+    tmp.par_chunks_mut(cw).enumerate().for_each(|(y, out)| {
         let row = image.row(y);
-        for cx in 0..cw {
+        for (cx, o) in out.iter_mut().enumerate() {
             let x = 2 * cx as isize;
-            tmp[y * cw + cx] = (0..5)
+            *o = (0..5)
                 .map(|i| taps[i] * row[clamp(x + i as isize - 2, w)] as u32)
                 .sum();
         }
-    }
-    Raster::from_fn(cw, ch, |cx, cy| {
+    });
+    let mut out = vec![0u8; cw * ch];
+    out.par_chunks_mut(cw).enumerate().for_each(|(cy, row)| {
         let y = 2 * cy as isize;
-        let s: u32 = (0..5)
-            .map(|j| taps[j] * tmp[clamp(y + j as isize - 2, h) * cw + cx])
-            .sum();
-        ((s + 128) / 256) as u8
-    })
+        for (cx, o) in row.iter_mut().enumerate() {
+            let s: u32 = (0..5)
+                .map(|j| taps[j] * tmp[clamp(y + j as isize - 2, h) * cw + cx])
+                .sum();
+            *o = ((s + 128) / 256) as u8;
+        }
+    });
+    Raster::from_vec(cw, ch, out)
 }
 
 /// Per-pixel window starts for a `width × height` level from the coarse level's dense disparity:
@@ -43,31 +49,35 @@ pub fn window_bases(
     let (cw, ch) = (coarse.width(), coarse.height());
     let top = (max_disparity + 1).saturating_sub(k);
     let mut bases = vec![0u16; width * height];
-    for y in 0..height {
-        for x in 0..width {
-            let (cx, cy) = ((x / 2).min(cw - 1), (y / 2).min(ch - 1));
-            let own = 2.0 * coarse.get(cx, cy);
-            let (mut lo, mut hi) = (own, own);
-            for qy in cy.saturating_sub(1)..=(cy + 1).min(ch - 1) {
-                for qx in cx.saturating_sub(1)..=(cx + 1).min(cw - 1) {
-                    let v = 2.0 * coarse.get(qx, qy);
-                    lo = lo.min(v);
-                    hi = hi.max(v);
+    bases
+        .par_chunks_mut(width)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let cy = (y / 2).min(ch - 1);
+            for (x, b) in row.iter_mut().enumerate() {
+                let cx = (x / 2).min(cw - 1);
+                let own = 2.0 * coarse.get(cx, cy);
+                let (mut lo, mut hi) = (own, own);
+                for qy in cy.saturating_sub(1)..=(cy + 1).min(ch - 1) {
+                    for qx in cx.saturating_sub(1)..=(cx + 1).min(cw - 1) {
+                        let v = 2.0 * coarse.get(qx, qy);
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                    }
                 }
+                let centre = if hi - lo + 4.0 <= k as f32 {
+                    0.5 * (lo + hi)
+                } else {
+                    own
+                };
+                let start = (centre - k as f32 / 2.0).round();
+                *b = if start.is_finite() {
+                    start.clamp(0.0, top as f32) as u16
+                } else {
+                    0
+                };
             }
-            let centre = if hi - lo + 4.0 <= k as f32 {
-                0.5 * (lo + hi)
-            } else {
-                own
-            };
-            let start = (centre - k as f32 / 2.0).round();
-            bases[y * width + x] = if start.is_finite() {
-                start.clamp(0.0, top as f32) as u16
-            } else {
-                0
-            };
-        }
-    }
+        });
     bases
 }
 

@@ -133,29 +133,35 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
     for x in 0..w {
         let s = &s_row[x * k..(x + 1) * k];
         let base = bases.map_or(0, |b| b[x] as usize);
-        let (mut bi, mut bv) = (0usize, u16::MAX);
-        for (i, &v) in s.iter().enumerate() {
-            if v < bv {
-                bv = v;
-                bi = i;
-            }
-            let d = base + i;
-            if d <= x && v < right_cost[x - d] {
-                right_cost[x - d] = v;
-                right_best[x - d] = d as u32;
+        // Winner: the first index of the minimum (the minimum alone vectorises).
+        let bv = s.iter().copied().min().unwrap_or(u16::MAX);
+        let bi = s.iter().position(|&v| v == bv).unwrap_or(0);
+        // Right view: disparities d = base + i ≤ x only.
+        let valid = if x >= base { (x - base + 1).min(k) } else { 0 };
+        for (i, &v) in s[..valid].iter().enumerate() {
+            let j = x - base - i;
+            if v < right_cost[j] {
+                right_cost[j] = v;
+                right_best[j] = (base + i) as u32;
             }
         }
         best_left[x] = (base + bi) as u32;
         let u = bv.saturating_sub(agg.min_sum[y * w + x]) as f32;
         conf[x] = 1.0 / (1.0 + u / unit);
         if opts.uniqueness > 0 {
-            let limit = bv as u64 * 100;
-            let unique = s.iter().enumerate().all(|(i, &v)| {
-                i.abs_diff(bi) <= 1 || v as u64 * (100 - opts.uniqueness as u64) >= limit
-            });
-            if !unique {
-                st[x] = PixelState::Mismatch;
-                continue;
+            // Unique when every disparity not adjacent to the winner costs at least
+            // bv / (1 − uniqueness): compare the smallest of them once.
+            let below = s[..bi.saturating_sub(1)].iter().copied().min();
+            let above = s.get(bi + 2..).and_then(|t| t.iter().copied().min());
+            let other = match (below, above) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            };
+            if let Some(v) = other {
+                if (v as u64) * (100 - opts.uniqueness as u64) < bv as u64 * 100 {
+                    st[x] = PixelState::Mismatch;
+                    continue;
+                }
             }
         }
         let off = if bi > 0 && bi + 1 < k {
@@ -177,14 +183,22 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
         }
         // Hirschmüller's rule: a failed pixel is occluded when no disparity at all would
         // pass the check (its true match is hidden), and a mismatch otherwise.
+        // Pixel x at disparity d = x − xr passes when |right_best[xr] − d| ≤ tol, i.e. when x lies
+        // within tol of xr + right_best[xr]: mark those x once per right pixel instead of trying
+        // every disparity of every failed pixel.
         let top = bases.map_or(k, |b| b.iter().map(|&v| v as usize + k).max().unwrap_or(k));
-        for x in 0..w {
-            if st[x] == PixelState::Valid {
-                continue;
+        let tol = tol as usize;
+        let mut reachable = vec![false; w];
+        for (xr, &rb) in right_best.iter().enumerate() {
+            let t = xr + rb as usize;
+            let lo = t.saturating_sub(tol).max(xr);
+            let hi = (t + tol).min(xr + top - 1).min(w - 1);
+            for r in reachable.iter_mut().take(hi + 1).skip(lo) {
+                *r = true;
             }
-            let consistent =
-                (0..top.min(x + 1)).any(|d| right_best[x - d].abs_diff(d as u32) <= tol);
-            if !consistent {
+        }
+        for x in 0..w {
+            if st[x] != PixelState::Valid && !reachable[x] {
                 st[x] = PixelState::Occluded;
             }
         }
@@ -272,105 +286,162 @@ pub fn refine_locally(
     iterations: u32,
 ) {
     let (w, h) = (left.width(), left.height());
-    let r = radius as isize;
-    // Horizontal gradient of the right view (central differences).
-    let grad: Vec<f32> = (0..w * h)
-        .map(|p| {
-            let (x, y) = (p % w, p / w);
-            let a = *right.get(x.saturating_sub(1), y) as f32;
-            let b = *right.get((x + 1).min(w - 1), y) as f32;
-            0.5 * (b - a)
-        })
-        .collect();
-    let similarity: Vec<f32> = (0..256).map(|d| (-(d as f32) / 12.0).exp()).collect();
+    if w < 2 {
+        return;
+    }
+    // Horizontal gradient of the right view (central differences, borders replicated).
+    let mut grad = vec![0f32; w * h];
+    grad.par_chunks_mut(w).enumerate().for_each(|(y, g)| {
+        let row = right.row(y);
+        for (x, g) in g.iter_mut().enumerate() {
+            let a = row[x.saturating_sub(1)] as f32;
+            let b = row[(x + 1).min(w - 1)] as f32;
+            *g = 0.5 * (b - a);
+        }
+    });
+    let mut similarity = [0f32; 256];
+    for (d, s) in similarity.iter_mut().enumerate() {
+        *s = (-(d as f32) / 12.0).exp();
+    }
     let src = disparity.pixels().to_vec();
+    let ctx = LocalFit {
+        left,
+        right,
+        grad: &grad,
+        similarity: &similarity,
+        radius,
+        iterations,
+    };
     disparity
         .pixels_mut()
         .par_chunks_mut(w)
         .enumerate()
-        .for_each(|(y, out)| {
-            let mut lv = Vec::with_capacity((2 * radius + 1).pow(2));
-            for (x, o) in out.iter_mut().enumerate() {
-                let d0 = src[y * w + x];
-                if d0.is_nan() {
-                    continue;
+        .for_each(|(y, out)| refine_row_fast(&ctx, &src[y * w..(y + 1) * w], y, out));
+}
+
+crate::avx2_variant!(fn refine_row_fast<'a, 'b>(ctx: &'b LocalFit<'a>, src: &'b [f32], y: usize, out: &'b mut [f32]) => refine_row);
+
+/// [`LocalFit::fit`] on every estimate of row `y` (`src` the row before refinement).
+#[inline(always)]
+fn refine_row(ctx: &LocalFit<'_>, src: &[f32], y: usize, out: &mut [f32]) {
+    for (x, (o, &d0)) in out.iter_mut().zip(src).enumerate() {
+        if d0.is_nan() {
+            continue;
+        }
+        if let Some(d) = ctx.fit(x, y, d0) {
+            *o = d;
+        }
+    }
+}
+
+/// Inputs of the local fit of [`refine_locally`].
+struct LocalFit<'a> {
+    left: &'a Raster<u8>,
+    right: &'a Raster<u8>,
+    grad: &'a [f32],
+    similarity: &'a [f32; 256],
+    radius: usize,
+    iterations: u32,
+}
+
+impl LocalFit<'_> {
+    /// The refined disparity of pixel (x, y) from `d0`, or `None` to keep `d0`.
+    ///
+    /// One pass over the window per step accumulates weighted sums (values taken relative to the
+    /// centre's grey level, so the variances do not cancel in `f32`); means, variances and the
+    /// Gauss–Newton step follow from them.
+    #[inline(always)]
+    fn fit(&self, x: usize, y: usize, d0: f32) -> Option<f32> {
+        let (w, h) = (self.left.width(), self.left.height());
+        let r = self.radius;
+        let centre = *self.left.get(x, y);
+        let cf = centre as f32;
+        let (y0, y1) = (y.saturating_sub(r), (y + r).min(h - 1));
+        let (x0, x1) = (x.saturating_sub(r), (x + r).min(w - 1));
+        let cols = x1 + 1 - x0;
+        // The window's weights and left values (relative to the centre) do not depend on d:
+        // once per pixel, row-major with `cols` columns (radius ≤ 4: at most 81).
+        let mut wt = [0f32; 81];
+        let mut lv = [0f32; 81];
+        for (j, yy) in (y0..=y1).enumerate() {
+            let row = &self.left.row(yy)[x0..=x1];
+            for (i, &v) in row.iter().enumerate() {
+                wt[j * cols + i] = self.similarity[v.abs_diff(centre) as usize];
+                lv[j * cols + i] = v as f32 - cf;
+            }
+        }
+        let top = (w - 1) as f32;
+        let mut d = d0;
+        for _ in 0..self.iterations {
+            // Window columns whose match x − d lies inside the right image.
+            let lo = x0.max(d.max(0.0).ceil() as usize);
+            let hi_f = (top + d).floor();
+            if !hi_f.is_finite() || hi_f < lo as f32 {
+                return None;
+            }
+            let hi = x1.min(hi_f as usize);
+            if hi < lo {
+                return None;
+            }
+            let n_cols = hi + 1 - lo;
+            // Column lo + i matches xs = lo + i − d = xi0 + i + f: one fraction for the window.
+            let xs0 = lo as f32 - d;
+            let mut xi0 = xs0 as usize;
+            let mut f = xs0 - xi0 as f32;
+            if xi0 + n_cols >= w {
+                // The last match is exactly the last column (f = 0): read it as 1 × the next.
+                if xi0 == 0 {
+                    return None;
                 }
-                let centre = *left.get(x, y);
-                // Window pixels: left value and similarity weight.
-                lv.clear();
-                for j in -r..=r {
-                    let yy = y as isize + j;
-                    if yy < 0 || yy >= h as isize {
-                        continue;
-                    }
-                    for i in -r..=r {
-                        let xx = x as isize + i;
-                        if xx < 0 || xx >= w as isize {
-                            continue;
-                        }
-                        let v = *left.get(xx as usize, yy as usize);
-                        let wt = similarity[v.abs_diff(centre) as usize];
-                        lv.push((xx as f32, yy as usize, v as f32, wt));
-                    }
-                }
-                let mut d = d0;
-                let mut ok = true;
-                for _ in 0..iterations {
-                    let (mut sw, mut sl, mut sr, mut sg) = (0f32, 0f32, 0f32, 0f32);
-                    let mut samples = [(0f32, 0f32, 0f32, 0f32); 81];
-                    let mut n = 0;
-                    for &(xx, yy, lval, wt) in &lv {
-                        let xs = xx - d;
-                        if xs < 0.0 || xs > (w - 1) as f32 || n == samples.len() {
-                            continue;
-                        }
-                        let x0 = (xs as usize).min(w - 2);
-                        let f = xs - x0 as f32;
-                        let row = right.row(yy);
-                        let rv = row[x0] as f32 * (1.0 - f) + row[x0 + 1] as f32 * f;
-                        let g = grad[yy * w + x0] * (1.0 - f) + grad[yy * w + x0 + 1] * f;
-                        samples[n] = (lval, rv, g, wt);
-                        n += 1;
-                        sw += wt;
-                        sl += wt * lval;
-                        sr += wt * rv;
-                        sg += wt * g;
-                    }
-                    if n < 4 || sw <= 0.0 {
-                        ok = false;
-                        break;
-                    }
-                    let (ml, mr, mg) = (sl / sw, sr / sw, sg / sw);
-                    let (mut vl, mut vr) = (0f32, 0f32);
-                    for s in &samples[..n] {
-                        vl += s.3 * (s.0 - ml) * (s.0 - ml);
-                        vr += s.3 * (s.1 - mr) * (s.1 - mr);
-                    }
-                    let gain = if vl > 1e-3 { (vr / vl).sqrt() } else { 1.0 };
-                    let (mut eg, mut gg) = (0f32, 0f32);
-                    for s in &samples[..n] {
-                        // Residual of L(p) ≈ R(p − d): moving d by δ changes R by −g·δ.
-                        let e = (s.0 - ml) * gain - (s.1 - mr);
-                        let g = s.2 - mg;
-                        eg += s.3 * e * g;
-                        gg += s.3 * g * g;
-                    }
-                    if gg < 4.0 * sw {
-                        // Under ~2 grey levels per pixel of horizontal gradient: no reliable texture.
-                        ok = false;
-                        break;
-                    }
-                    let delta = (-eg / gg).clamp(-0.5, 0.5);
-                    d += delta;
-                    if delta.abs() < 0.005 {
-                        break;
-                    }
-                }
-                if ok && d.is_finite() && (d - d0).abs() <= 0.5 {
-                    *o = d;
+                xi0 -= 1;
+                f += 1.0;
+            }
+            let (mut sw, mut sl, mut sr, mut sg) = (0f32, 0f32, 0f32, 0f32);
+            let (mut sll, mut srr, mut sgg, mut slg, mut srg) = (0f32, 0f32, 0f32, 0f32, 0f32);
+            for (j, yy) in (y0..=y1).enumerate() {
+                let at = j * cols + (lo - x0);
+                let (wts, ls) = (&wt[at..at + n_cols], &lv[at..at + n_cols]);
+                let rrow = &self.right.row(yy)[xi0..xi0 + n_cols + 1];
+                let grow = &self.grad[yy * w + xi0..yy * w + xi0 + n_cols + 1];
+                for i in 0..n_cols {
+                    let (r0, r1) = (rrow[i] as f32, rrow[i + 1] as f32);
+                    let rv = r0 + f * (r1 - r0) - cf;
+                    let g = grow[i] + f * (grow[i + 1] - grow[i]);
+                    let (q, l) = (wts[i], ls[i]);
+                    sw += q;
+                    sl += q * l;
+                    sr += q * rv;
+                    sg += q * g;
+                    sll += q * l * l;
+                    srr += q * rv * rv;
+                    sgg += q * g * g;
+                    slg += q * l * g;
+                    srg += q * rv * g;
                 }
             }
-        });
+            let n = n_cols * (y1 + 1 - y0);
+            if n < 4 || sw <= 0.0 {
+                return None;
+            }
+            let (ml, mr, mg) = (sl / sw, sr / sw, sg / sw);
+            let vl = (sll - sw * ml * ml).max(0.0);
+            let vr = (srr - sw * mr * mr).max(0.0);
+            let gain = if vl > 1e-3 { (vr / vl).sqrt() } else { 1.0 };
+            // Residual of L(p) ≈ R(p − d): moving d by δ changes R by −g·δ.
+            let eg = gain * (slg - sw * ml * mg) - (srg - sw * mr * mg);
+            let gg = sgg - sw * mg * mg;
+            if gg < 4.0 * sw {
+                // Under ~2 grey levels per pixel of horizontal gradient: no reliable texture.
+                return None;
+            }
+            let delta = (-eg / gg).clamp(-0.5, 0.5);
+            d += delta;
+            if delta.abs() < 0.005 {
+                break;
+            }
+        }
+        (d.is_finite() && (d - d0).abs() <= 0.5).then_some(d)
+    }
 }
 
 #[cfg(test)]

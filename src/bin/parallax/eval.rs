@@ -62,6 +62,10 @@ pub struct StereoArgs {
     /// Where the tables, plot and peer outputs go.
     #[arg(long, default_value = "target/eval-stereo", value_name = "DIR")]
     out_dir: PathBuf,
+    /// Match each pair this many times and report the median time (and per-stage medians); for
+    /// profiling on a loaded machine. The peer still runs once.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    repeat: u32,
     #[command(flatten)]
     common: CommonArgs,
 }
@@ -236,22 +240,59 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
             ms: vec![],
             peer: false,
         };
+        let mut stages: Vec<(String, f64)> = Vec::new();
         for s in &scenes {
             let o = StereoOptions {
                 max_disparity: ndisp(s).saturating_sub(1).max(1),
                 ..base.clone()
             };
-            let d = stereo::match_pair(&s.left.view(), &s.right.view(), &o)?;
+            let mut runs = Vec::new();
+            for _ in 0..args.repeat.max(1) {
+                runs.push(stereo::match_pair(&s.left.view(), &s.right.view(), &o)?);
+            }
+            let median = |mut v: Vec<f64>| {
+                v.sort_by(f64::total_cmp);
+                v[v.len() / 2]
+            };
+            let total = median(runs.iter().map(|d| d.stats.total_ms).collect());
+            let d = &runs[0];
             row.scores
                 .push(score(&d.disparity, &s.truth, &s.mask, ndisp(s) as f32)?);
-            row.ms.push(d.stats.total_ms);
+            row.ms.push(total);
+            for (stage, _) in &d.stats.timings {
+                let ms = median(
+                    runs.iter()
+                        .map(|r| {
+                            r.stats
+                                .timings
+                                .iter()
+                                .find(|(n, _)| n == stage)
+                                .map_or(0.0, |t| t.1)
+                        })
+                        .collect(),
+                );
+                match stages.iter_mut().find(|(n, _)| n == stage) {
+                    Some(e) => e.1 += ms,
+                    None => stages.push((stage.clone(), ms)),
+                }
+            }
             trace.record(
                 format!("stereo[{name}/{}]", s.name),
                 StageStatus::Computed,
-                d.stats.total_ms,
+                total,
                 "eval",
             );
             bar.inc(1);
+        }
+        if !args.common.quiet {
+            let list: Vec<String> = stages
+                .iter()
+                .map(|(n, ms)| format!("{n} {ms:.0} ms"))
+                .collect();
+            eprintln!(
+                "parallax: {name}: stages over all pairs: {}",
+                list.join(", ")
+            );
         }
         rows.push(row);
     }
