@@ -10,32 +10,13 @@ mod composite_common;
 mod hosts_common;
 
 use std::path::Path;
-use std::process::Command;
 
-use hosts_common::{library_dir, root, run, split_env, synthetic, values};
+use hosts_common::{compile_native, root, run, synthetic, values};
 
 fn compile_c(source: &Path, output: &Path) {
     let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    let lib_dir = library_dir();
-    let result = Command::new(&cc)
-        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-pedantic", "-g"])
-        .arg("-I")
-        .arg(root().join("include"))
-        .args(split_env("PARALLAX_FFI_CFLAGS"))
-        .arg(source)
-        .arg("-o")
-        .arg(output)
-        .arg(format!("-L{}", lib_dir.display()))
-        .arg(format!("-Wl,-rpath,{}", lib_dir.display()))
-        .args(["-lparallax", "-lm", "-lpthread", "-ldl"])
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run C compiler {cc:?}: {e}"));
-    assert!(
-        result.status.success(),
-        "compiling {} failed:\n{}",
-        source.display(),
-        String::from_utf8_lossy(&result.stderr)
-    );
+    let flags = ["-std=c11", "-Wall", "-Wextra", "-Werror", "-pedantic", "-g"];
+    compile_native(&cc, &flags, &[], &[source], output);
 }
 
 #[test]
@@ -46,20 +27,7 @@ fn c_example_renders_the_model_into_the_photo_where_it_was_placed() {
     let exe = dir.path().join("parallax_example_c");
     compile_c(&root().join("examples/c/main.c"), &exe);
     let composite = dir.path().join("composite.ppm");
-    let out = run(
-        &exe,
-        &[
-            truth.left.as_os_str(),
-            truth.right.as_os_str(),
-            truth.glb.as_os_str(),
-            truth.focal_px.to_string().as_ref(),
-            truth.baseline_m.to_string().as_ref(),
-            px.to_string().as_ref(),
-            py.to_string().as_ref(),
-            composite.as_os_str(),
-        ],
-        false,
-    );
+    let out = run(&exe, &truth.example_args(px, py, &composite), false);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),

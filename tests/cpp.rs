@@ -8,40 +8,28 @@ mod composite_common;
 mod hosts_common;
 
 use std::path::Path;
-use std::process::Command;
 
-use hosts_common::{library_dir, root, run, split_env, synthetic, values};
+use hosts_common::{compile_native, root, run, split_env, synthetic, values};
 
 fn compile_cpp(sources: &[&Path], output: &Path) {
     let cxx = std::env::var("CXX").unwrap_or_else(|_| "g++".into());
-    let lib_dir = library_dir();
-    let result = Command::new(&cxx)
-        .args([
-            "-std=c++17",
-            "-Wall",
-            "-Wextra",
-            "-Werror",
-            "-pedantic",
-            "-g",
-        ])
-        .arg("-I")
-        .arg(root().join("include"))
-        .arg("-I")
-        .arg(root().join("bindings/cpp"))
-        .args(split_env("PARALLAX_FFI_CFLAGS"))
-        .args(cfg!(feature = "unity").then_some("-DPLX_FEATURE_UNITY"))
-        .args(sources)
-        .arg("-o")
-        .arg(output)
-        .arg(format!("-L{}", lib_dir.display()))
-        .arg(format!("-Wl,-rpath,{}", lib_dir.display()))
-        .args(["-lparallax", "-lm", "-lpthread", "-ldl"])
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run C++ compiler {cxx:?}: {e}"));
-    assert!(
-        result.status.success(),
-        "compiling {sources:?} failed:\n{}",
-        String::from_utf8_lossy(&result.stderr)
+    let mut flags = vec![
+        "-std=c++17",
+        "-Wall",
+        "-Wextra",
+        "-Werror",
+        "-pedantic",
+        "-g",
+    ];
+    if cfg!(feature = "unity") {
+        flags.push("-DPLX_FEATURE_UNITY");
+    }
+    compile_native(
+        &cxx,
+        &flags,
+        &[root().join("bindings/cpp")],
+        sources,
+        output,
     );
 }
 
@@ -241,7 +229,7 @@ fn cpp_wrapper_functions_behave_like_the_c_api() {
     let dir = tempfile::tempdir().expect("temp dir");
     let exe = dir.path().join("wrapper");
     compile_cpp(&[&root().join("tests/cpp/wrapper.cpp")], &exe);
-    let out = run(&exe, &[], true);
+    let out = run::<&str>(&exe, &[], true);
     assert!(
         out.status.success(),
         "tests/cpp/wrapper.cpp failed ({}):\n{}{}",

@@ -880,7 +880,7 @@ fn compile_program(sources: &[PathBuf], references: &[&Path], exe: &Path) {
 }
 
 /// Runs a Mono program against the library this `cargo test` built.
-fn mono(exe: &Path, args: &[&std::ffi::OsStr]) -> Output {
+fn mono<S: AsRef<std::ffi::OsStr>>(exe: &Path, args: &[S]) -> Output {
     let out = Command::new("mono")
         .arg("--debug")
         .arg(exe)
@@ -980,19 +980,7 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
     compile_program(&[root().join("examples/csharp/Program.cs")], &[&dll], &exe);
     // A floor pixel of the room, below the image centre.
     let (px, py) = (truth.width as f32 * 0.5, truth.height as f32 * 0.75);
-    let out = mono(
-        &exe,
-        &[
-            truth.left.as_os_str(),
-            truth.right.as_os_str(),
-            truth.glb.as_os_str(),
-            truth.focal_px.to_string().as_ref(),
-            truth.baseline_m.to_string().as_ref(),
-            px.to_string().as_ref(),
-            py.to_string().as_ref(),
-            dir.path().as_os_str(),
-        ],
-    );
+    let out = mono(&exe, &truth.example_args(px, py, dir.path()));
     let stdout = String::from_utf8_lossy(&out.stdout).to_string();
     println!("{stdout}");
     // PARALLAX_CSHARP_OUT=DIR keeps the raw images for a look.

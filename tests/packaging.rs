@@ -67,20 +67,7 @@ fn run_example(exe: &Path, truth: &Synthetic, out_dir: &Path) {
         "{}.ppm",
         exe.file_name().unwrap().to_string_lossy()
     ));
-    let out = run(
-        exe,
-        &[
-            truth.left.as_os_str(),
-            truth.right.as_os_str(),
-            truth.glb.as_os_str(),
-            truth.focal_px.to_string().as_ref(),
-            truth.baseline_m.to_string().as_ref(),
-            px.to_string().as_ref(),
-            py.to_string().as_ref(),
-            composite.as_os_str(),
-        ],
-        false,
-    );
+    let out = run(exe, &truth.example_args(px, py, &composite), false);
     let out = check(&exe.display().to_string(), out);
     let v = values(&out.stdout);
     assert_eq!(v["size"], format!("{}x{}", truth.width, truth.height));

@@ -415,7 +415,7 @@ fn normals_on_detected_surfaces_snap_to_the_planes_and_others_are_kept() {
         &room.depth,
         &room.camera,
         &mut normals,
-        2.0 * SurfaceOptions::default().distance_tolerance,
+        SurfaceOptions::default().membership_tolerance(),
     );
     assert!(replaced > 160 * 120 / 2, "{replaced} pixels snapped");
     let (mut floor, mut floor_ok) = (0, 0);
@@ -441,6 +441,15 @@ fn normals_on_detected_surfaces_snap_to_the_planes_and_others_are_kept() {
     assert!(other.pixels().iter().all(|n| *n == [0.0, 0.0, 1.0]));
 }
 
+/// `mesh` with every vertex normal turned by `turn` (positions unchanged).
+fn with_normals_turned(mesh: &SceneMesh, turn: glam::Quat) -> SceneMesh {
+    let mut turned = mesh.clone();
+    for n in &mut turned.normals {
+        *n = (turn * Vec3::from(*n)).to_array();
+    }
+    turned
+}
+
 #[test]
 fn without_planes_a_slanted_vertex_normal_stands_the_object_along_gravity() {
     let room = room(320, 240, 280.0);
@@ -454,12 +463,8 @@ fn without_planes_a_slanted_vertex_normal_stands_the_object_along_gravity() {
     let pixel = room.camera.project(spot).unwrap().0;
     // 45° off: neither a floor's nor a wall's normal, as noisy stereo normals are.
     for (tilt_deg, expect_gravity) in [(45.0f32, true), (85.0, false)] {
-        let mut noisy = clean.clone();
         let tilt = glam::Quat::from_rotation_z(tilt_deg.to_radians());
-        for n in &mut noisy.normals {
-            *n = (tilt * Vec3::from(*n)).to_array();
-        }
-        let bvh = Bvh::new(&noisy);
+        let bvh = Bvh::new(&with_normals_turned(&clean, tilt));
         let p = place(
             &bvh,
             &room.camera,
@@ -498,12 +503,8 @@ fn placement_trusts_the_detected_plane_over_a_noisy_vertex_normal() {
     let surfaces = surfaces_of(&room, &clean);
     // Every vertex normal tilted 40° (as noisy stereo normals can be): beyond the 20° that
     // `Orientation::Auto` accepts as horizontal, and beyond the snap's normal agreement.
-    let mut noisy = clean.clone();
     let tilt = glam::Quat::from_rotation_z(40f32.to_radians());
-    for n in &mut noisy.normals {
-        *n = (tilt * Vec3::from(*n)).to_array();
-    }
-    let bvh = Bvh::new(&noisy);
+    let bvh = Bvh::new(&with_normals_turned(&clean, tilt));
     let spot = room.to_camera * Vec3::new(0.2, TABLE_Y, -2.5);
     let pixel = room.camera.project(spot).unwrap().0;
     let p = place(

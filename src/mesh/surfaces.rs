@@ -69,6 +69,13 @@ impl Default for SurfaceOptions {
 }
 
 impl SurfaceOptions {
+    /// The tolerance (fraction of a point's depth) within which a point counts as lying on a
+    /// surface found with these options, for [`Surfaces::surface_at`] and
+    /// [`Surfaces::snap_normals`]: twice `distance_tolerance`, the spread of a plane's own inliers.
+    pub fn membership_tolerance(&self) -> f32 {
+        2.0 * self.distance_tolerance
+    }
+
     /// Checks every field.
     ///
     /// # Errors

@@ -184,20 +184,22 @@ impl ReferenceTruth {
     /// The error of `ours` against the ground truth per region. `ldr` compares with the truth
     /// clipped to [0, 1], as a composite made from an 8-bit photo can at best reproduce.
     pub fn errors(&self, ours: &Raster<[f32; 3]>, ldr: bool) -> RegionErrors {
+        let clipped;
         let truth = if ldr {
-            self.composite.map(|c| c.map(|v| v.clamp(0.0, 1.0)))
+            clipped = self.composite.map(|c| c.map(|v| v.clamp(0.0, 1.0)));
+            &clipped
         } else {
-            self.composite.clone()
+            &self.composite
         };
         let in_artefact = |x: usize, y: usize| *self.mask.get(x, y) > 0.5;
         let in_shadow = |x: usize, y: usize| {
             *self.mask.get(x, y) < 0.01 && self.ratio.get(x, y).iter().sum::<f32>() / 3.0 < 0.95
         };
         RegionErrors {
-            image: region_error(ours, &truth, |_, _| true),
-            artefact: region_error(ours, &truth, in_artefact),
-            shadow: region_error(ours, &truth, in_shadow),
-            affected: region_error(ours, &truth, |x, y| in_artefact(x, y) || in_shadow(x, y)),
+            image: region_error(ours, truth, |_, _| true),
+            artefact: region_error(ours, truth, in_artefact),
+            shadow: region_error(ours, truth, in_shadow),
+            affected: region_error(ours, truth, |x, y| in_artefact(x, y) || in_shadow(x, y)),
         }
     }
 
@@ -447,9 +449,19 @@ fn without_emitters(mut probe: CubeLevel, lights: &[LightRecord]) -> CubeLevel {
     probe
 }
 
+/// What [`compare_true_inputs`] measured.
+#[derive(Debug, Clone)]
+pub struct TrueInputRun {
+    /// Per configuration.
+    pub rows: Vec<ComparisonRow>,
+    /// The composite of the first configuration (its untimed warm-up render); `None` without
+    /// configurations.
+    pub first: Option<Composite>,
+}
+
 /// Renders `truth`'s objects into its photo with TRUE depth (mesh from it), lights and SH9, once
 /// per configuration, and measures each against the ground truth. One untimed render first
-/// takes the device's first-use cost out of the figures.
+/// takes the device's first-use cost out of the figures; its composite is kept.
 ///
 /// # Errors
 /// As [`SceneMesh::from_depth`] and [`Renderer::render`].
@@ -457,52 +469,13 @@ pub fn compare_true_inputs(
     renderer: &Renderer,
     truth: &ReferenceTruth,
     configs: &[RenderOptions],
-) -> Result<Vec<ComparisonRow>> {
-    with_true_inputs(truth, |inputs| {
-        if let Some(first) = configs.first() {
-            renderer.render(inputs, first)?;
-        }
-        let mut rows = Vec::new();
-        for config in configs {
-            let start = Instant::now();
-            let out: Composite = renderer.render(inputs, config)?;
-            let render_ms = start.elapsed().as_secs_f64() * 1e3;
-            let e = truth.errors(&out.composite, false);
-            rows.push(ComparisonRow {
-                options: *config,
-                image: e.image,
-                artefact: e.artefact,
-                shadow: e.shadow,
-                affected: e.affected,
-                render_ms,
-            });
-        }
-        Ok(rows)
-    })
-}
-
-/// The composite of `truth`'s objects rendered with TRUE depth, lights and SH9 and `options`.
-///
-/// # Errors
-/// As [`compare_true_inputs`].
-pub fn render_true_inputs(
-    renderer: &Renderer,
-    truth: &ReferenceTruth,
-    options: &RenderOptions,
-) -> Result<Composite> {
-    with_true_inputs(truth, |inputs| renderer.render(inputs, options))
-}
-
-fn with_true_inputs<T>(
-    truth: &ReferenceTruth,
-    f: impl FnOnce(&RenderInputs) -> Result<T>,
-) -> Result<T> {
+) -> Result<TrueInputRun> {
     let (w, h) = truth.size();
     let camera =
         Camera::from_calibration(&truth.calibration, w, h)?.with_clip_from_depth(&truth.depth)?;
     let mesh = SceneMesh::from_depth(&truth.depth, &camera, &MeshOptions::default())?;
     let set = truth.artefact_set()?;
-    f(&RenderInputs {
+    let inputs = RenderInputs {
         photo: &truth.photo,
         camera: &camera,
         scene_mesh: Some(&mesh),
@@ -511,7 +484,27 @@ fn with_true_inputs<T>(
         sh9: &truth.sh9,
         specular: None,
         photo_shadow: None,
-    })
+    };
+    let first = configs
+        .first()
+        .map(|config| renderer.render(&inputs, config))
+        .transpose()?;
+    let mut rows = Vec::new();
+    for config in configs {
+        let start = Instant::now();
+        let out: Composite = renderer.render(&inputs, config)?;
+        let render_ms = start.elapsed().as_secs_f64() * 1e3;
+        let e = truth.errors(&out.composite, false);
+        rows.push(ComparisonRow {
+            options: *config,
+            image: e.image,
+            artefact: e.artefact,
+            shadow: e.shadow,
+            affected: e.affected,
+            render_ms,
+        });
+    }
+    Ok(TrueInputRun { rows, first })
 }
 
 /// Renders the setup's scene with the path tracer (photo, TRUE depth and lights, ground-truth
@@ -524,7 +517,7 @@ pub fn compare_with_reference(
     setup: &ComparisonSetup,
 ) -> Result<ComparisonResult> {
     let truth = render_truth(setup, false)?;
-    let rows = compare_true_inputs(renderer, &truth, &setup.configs)?;
+    let rows = compare_true_inputs(renderer, &truth, &setup.configs)?.rows;
     Ok(ComparisonResult {
         rows,
         reference_seconds: truth.reference_seconds,

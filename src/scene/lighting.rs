@@ -16,10 +16,6 @@ use crate::light::{
 };
 use crate::trace::Trace;
 
-/// A pixel's normal becomes its support surface's when its point lies within this many times the
-/// surface detection's distance tolerance of the plane (the spread of the plane's own inliers).
-const SNAP_TOLERANCE_FACTOR: f32 = 2.0;
-
 /// The lighting inputs the host may give instead of the estimates.
 #[derive(Debug, Default, Clone)]
 pub(super) struct SceneLighting {
@@ -159,12 +155,11 @@ impl Scene {
             self.surfaces.generation,
         ];
         let depth = Arc::clone(&base.0);
-        let tolerance = SNAP_TOLERANCE_FACTOR
-            * self
-                .surface_options
-                .value
-                .unwrap_or_default()
-                .distance_tolerance;
+        let tolerance = self
+            .surface_options
+            .value
+            .unwrap_or_default()
+            .membership_tolerance();
         let estimate =
             self.lighting
                 .estimate

@@ -145,7 +145,7 @@ pub fn box_glb() -> Vec<u8> {
 
 /// Runs `program` with `args` (under `PARALLAX_FFI_WRAPPER` when `wrapped`), without cargo's
 /// `LD_LIBRARY_PATH` (the program's rpath names the library this run built).
-pub fn run(program: &Path, args: &[&std::ffi::OsStr], wrapped: bool) -> Output {
+pub fn run<S: AsRef<std::ffi::OsStr>>(program: &Path, args: &[S], wrapped: bool) -> Output {
     let wrapper = if wrapped {
         split_env("PARALLAX_FFI_WRAPPER")
     } else {
@@ -179,4 +179,53 @@ pub fn have(program: &str) -> bool {
         .arg("--version")
         .output()
         .is_ok_and(|o| o.status.success())
+}
+
+/// Compiles `sources` with `compiler` and `flags`, the header folder and `include_dirs` on the
+/// include path, linked against the `libparallax` this run built (rpath set), plus
+/// `PARALLAX_FFI_CFLAGS`; panics with the compiler's output on failure.
+pub fn compile_native(
+    compiler: &str,
+    flags: &[&str],
+    include_dirs: &[PathBuf],
+    sources: &[&Path],
+    output: &Path,
+) {
+    let lib_dir = library_dir();
+    let mut cmd = Command::new(compiler);
+    cmd.args(flags).arg("-I").arg(root().join("include"));
+    for dir in include_dirs {
+        cmd.arg("-I").arg(dir);
+    }
+    let result = cmd
+        .args(split_env("PARALLAX_FFI_CFLAGS"))
+        .args(sources)
+        .arg("-o")
+        .arg(output)
+        .arg(format!("-L{}", lib_dir.display()))
+        .arg(format!("-Wl,-rpath,{}", lib_dir.display()))
+        .args(["-lparallax", "-lm", "-lpthread", "-ldl"])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run compiler {compiler:?}: {e}"));
+    assert!(
+        result.status.success(),
+        "compiling {sources:?} failed:\n{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+}
+
+impl Synthetic {
+    /// The host examples' arguments: `LEFT RIGHT MODEL FOCAL_PX BASELINE_M X Y OUT`.
+    pub fn example_args(&self, x: f32, y: f32, out: &Path) -> Vec<std::ffi::OsString> {
+        vec![
+            self.left.clone().into_os_string(),
+            self.right.clone().into_os_string(),
+            self.glb.clone().into_os_string(),
+            self.focal_px.to_string().into(),
+            self.baseline_m.to_string().into(),
+            x.to_string().into(),
+            y.to_string().into(),
+            out.as_os_str().to_owned(),
+        ]
+    }
 }

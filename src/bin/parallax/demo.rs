@@ -13,6 +13,7 @@ use std::sync::Arc;
 
 use glam::{Mat4, Vec2, Vec3};
 use parallax::artefact::builtin_glb;
+use parallax::camera::Camera;
 use parallax::context::{Context, ContextOptions};
 use parallax::image::Image;
 use parallax::mesh::{Orientation, PlaceOptions};
@@ -89,13 +90,16 @@ pub fn run(args: Args) -> Result<()> {
     // Both objects stand on the reconstructed surface seen at a pixel, as a host picking pixels
     // would place them: here the pixels where the truth shows the table top and the floor.
     let world_to_camera = Mat4::from_cols_array(&images.camera_to_world).inverse();
-    let c = &images.calibration;
-    let pixel_of = |world: [f32; 3]| {
-        let p = world_to_camera.transform_point3(Vec3::from(world));
-        Vec2::new(
-            (c.cx + c.focal_px * f64::from(p.x / -p.z)) as f32,
-            (c.cy - c.focal_px * f64::from(p.y / -p.z)) as f32,
-        )
+    let camera = Camera::from_calibration(
+        &images.calibration,
+        images.left.width() as u32,
+        images.left.height() as u32,
+    )?;
+    let pixel_of = |world: [f32; 3]| -> Result<Vec2> {
+        camera
+            .project(world_to_camera.transform_point3(Vec3::from(world)))
+            .map(|(pixel, _)| pixel)
+            .ok_or_else(|| Error::Internal(format!("demo point {world:?} is behind the camera")))
     };
     for (what, at, size_m, yaw_deg) in [
         ("metal-sphere", SPHERE_ON_TABLE, SPHERE_SIZE_M, 0.0),
@@ -110,7 +114,7 @@ pub fn run(args: Args) -> Result<()> {
             model_bounds: Some([local.min, local.max]),
             ..PlaceOptions::default()
         };
-        let placed = scene.place(pixel_of(at), size_m, yaw_deg.to_radians(), &options);
+        let placed = scene.place(pixel_of(at)?, size_m, yaw_deg.to_radians(), &options);
         absorb(&mut trace, &scene);
         scene.set_artefact_transform(id, placed?.transform)?;
     }

@@ -26,8 +26,7 @@ use std::time::Instant;
 use parallax::context::{Context, ContextOptions};
 use parallax::image::{Image, Raster};
 use parallax::render::compare::{
-    compare_true_inputs, render_true_inputs, render_truth, ComparisonSetup, ReferenceTruth,
-    RegionErrors,
+    compare_true_inputs, render_truth, ComparisonSetup, ReferenceTruth, RegionErrors,
 };
 use parallax::render::{RenderOptions, ShadingMode, ShadowMode};
 use parallax::scene::Scene;
@@ -241,10 +240,10 @@ pub fn run(args: CompositeArgs) -> Result<()> {
     for name in &args.scenes {
         let setup = ComparisonSetup::for_scene(name, args.width, args.spp, configs.clone())?;
         let truth = render_truth(&setup, true)?;
-        let true_rows = compare_true_inputs(&renderer, &truth, &configs)?;
+        let true_run = compare_true_inputs(&renderer, &truth, &configs)?;
         let estimated = estimated(&context, &truth, &configs)?;
         let (w, h) = truth.size();
-        for r in &true_rows {
+        for r in &true_run.rows {
             report.rows.push(Row {
                 scene: name.clone(),
                 inputs: "true",
@@ -269,8 +268,7 @@ pub fn run(args: CompositeArgs) -> Result<()> {
         }
         let image = |stem: &str| args.out.join(format!("{name}_{stem}.png"));
         Image::from_linear_rgb(&truth.composite).save_png(image("truth"))?;
-        if let Some(config) = configs.first() {
-            let ours = render_true_inputs(&renderer, &truth, config)?;
+        if let Some(ours) = &true_run.first {
             Image::from_linear_rgb(&ours.composite).save_png(image("true_inputs"))?;
         }
         Image::from_linear_rgb(&estimated.first).save_png(image("estimated"))?;

@@ -187,7 +187,7 @@ fn evaluate(
             &depth,
             &camera,
             &mut normals,
-            2.0 * surface_options.distance_tolerance,
+            surface_options.membership_tolerance(),
         );
         (depth, Some(normals))
     } else {

@@ -28,7 +28,7 @@ pub fn surfaces_preview(
     found: &Surfaces,
 ) -> Raster<[f32; 3]> {
     let mut out = background.clone();
-    let tolerance = SurfaceOptions::default().distance_tolerance * 2.0;
+    let tolerance = SurfaceOptions::default().membership_tolerance();
     for y in 0..out.height().min(depth.height()) {
         for x in 0..out.width().min(depth.width()) {
             let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
