@@ -165,13 +165,19 @@ pub(crate) fn match_grey(
     let (bases, k) = if use_coarse {
         let start = Instant::now();
         let (cl, cr) = (pyramid::reduce(l), pyramid::reduce(r));
+        // The coarse level only centres each pixel's window, and the window's margin absorbs
+        // its errors: 4 paths and no uniqueness or speckle checks measured as accurate as the
+        // whole pipeline there (docs/stereo-eval.md). The L/R check stays, so that occlusions
+        // are filled with the background and the finer level searches around it.
         let coarse_opts = StereoOptions {
             max_disparity: coarse_max,
             coarse_levels: o.coarse_levels - 1,
+            aggregation: Aggregation::Sgm4,
+            uniqueness: 0,
+            speckle_size: 0,
             fill: true,
             smoothing_passes: 0,
             local_refinement_radius: 0,
-            speckle_size: o.speckle_size / 4,
             ..o.clone()
         };
         let mut coarse_stats = StereoStats::default();

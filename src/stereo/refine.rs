@@ -126,24 +126,26 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
     let s_row = &agg.s[y * w * k..(y + 1) * w * k];
     let bases = bases.map(|b| &b[y * w..(y + 1) * w]);
     // Integer winners of the left view, and of the right view from the same volume:
-    // the right pixel xr = x − d sees left pixel x at disparity d.
+    // the right pixel xr = x − d sees left pixel x at disparity d. Costs and disparities are
+    // packed as `cost << 16 | d` so that one `min` keeps the cheapest disparity and, on ties, the
+    // smallest (what a first-index search would find). The right row is stored mirrored
+    // (`mirrored[w − 1 − xr]`) so that a pixel's disparities update it in ascending order: a
+    // plain loop the compiler vectorises.
     let mut best_left = vec![0u32; w];
-    let mut right_cost = vec![u16::MAX; w];
-    let mut right_best = vec![0u32; w];
+    let mut mirrored = vec![u32::MAX; w];
     for x in 0..w {
         let s = &s_row[x * k..(x + 1) * k];
         let base = bases.map_or(0, |b| b[x] as usize);
-        // Winner: the first index of the minimum (the minimum alone vectorises).
-        let bv = s.iter().copied().min().unwrap_or(u16::MAX);
-        let bi = s.iter().position(|&v| v == bv).unwrap_or(0);
-        // Right view: disparities d = base + i ≤ x only.
+        let (bv, bi) = first_min(s);
+        // Right view: disparities d = base + i ≤ x only, i.e. right pixels x − base − i.
         let valid = if x >= base { (x - base + 1).min(k) } else { 0 };
-        for (i, &v) in s[..valid].iter().enumerate() {
-            let j = x - base - i;
-            if v < right_cost[j] {
-                right_cost[j] = v;
-                right_best[j] = (base + i) as u32;
-            }
+        let m0 = w - 1 - (x - base.min(x));
+        for (i, (r, &v)) in mirrored[m0..m0 + valid]
+            .iter_mut()
+            .zip(&s[..valid])
+            .enumerate()
+        {
+            *r = (*r).min((v as u32) << 16 | (base + i) as u32);
         }
         best_left[x] = (base + bi) as u32;
         let u = bv.saturating_sub(agg.min_sum[y * w + x]) as f32;
@@ -177,20 +179,23 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
                 continue;
             }
             let d = best_left[x] as usize;
-            if d > x || right_best[x - d].abs_diff(d as u32) > tol {
+            if d > x || (mirrored[w - 1 - (x - d)] & 0xFFFF).abs_diff(d as u32) > tol {
                 st[x] = PixelState::Mismatch;
             }
         }
         // Hirschmüller's rule: a failed pixel is occluded when no disparity at all would
         // pass the check (its true match is hidden), and a mismatch otherwise.
-        // Pixel x at disparity d = x − xr passes when |right_best[xr] − d| ≤ tol, i.e. when x lies
-        // within tol of xr + right_best[xr]: mark those x once per right pixel instead of trying
+        // Pixel x at disparity d = x − xr passes when |best(xr) − d| ≤ tol, i.e. when x lies
+        // within tol of xr + best(xr): mark those x once per right pixel instead of trying
         // every disparity of every failed pixel.
         let top = bases.map_or(k, |b| b.iter().map(|&v| v as usize + k).max().unwrap_or(k));
         let tol = tol as usize;
         let mut reachable = vec![false; w];
-        for (xr, &rb) in right_best.iter().enumerate() {
-            let t = xr + rb as usize;
+        for (xr, &packed) in mirrored.iter().rev().enumerate() {
+            if packed == u32::MAX {
+                continue;
+            }
+            let t = xr + (packed & 0xFFFF) as usize;
             let lo = t.saturating_sub(tol).max(xr);
             let hi = (t + tol).min(xr + top - 1).min(w - 1);
             for r in reachable.iter_mut().take(hi + 1).skip(lo) {
@@ -208,6 +213,19 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
             disp[x] = f32::NAN;
         }
     }
+}
+
+/// The smallest value of `s` and its first index (`(u16::MAX, 0)` for an empty slice).
+#[inline(always)]
+fn first_min(s: &[u16]) -> (u16, usize) {
+    // `value << 16 | index`: the minimum is the smallest value at its first index.
+    let packed = s
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| (v as u32) << 16 | i as u32)
+        .min()
+        .unwrap_or((u16::MAX as u32) << 16);
+    ((packed >> 16) as u16, (packed & 0xFFFF) as usize)
 }
 
 /// Marks as [`PixelState::Mismatch`] every 4-connected region of valid pixels (neighbours differing

@@ -66,8 +66,23 @@ pub struct StereoArgs {
     /// profiling on a loaded machine. The peer still runs once.
     #[arg(long, default_value_t = 1, value_name = "N")]
     repeat: u32,
+    /// Also score these options: a JSON object of `StereoOptions` fields (inline, or `@FILE`),
+    /// every field left out taken from the `balanced` preset, `max_disparity` from each scene
+    /// (for example `{"smoothing_passes": 2, "p2": 400}`). May be given several times.
+    #[arg(long, value_name = "JSON|@FILE")]
+    options: Vec<String>,
     #[command(flatten)]
     common: CommonArgs,
+}
+
+/// The options of `--options`: inline JSON or `@FILE`, fields left out from `balanced`.
+fn parse_options(spec: &str) -> Result<StereoOptions> {
+    let text = match spec.strip_prefix('@') {
+        Some(path) => std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?,
+        None => spec.to_string(),
+    };
+    serde_json::from_str(&text)
+        .map_err(|e| Error::invalid(format!("--options {spec:?}: not StereoOptions JSON: {e}")))
 }
 
 /// Dispatches `parallax eval …`.
@@ -218,7 +233,12 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
     let mut trace = Trace::new();
     let scenes = trace.time("load", "scene folders", |_| load_scenes(&args.data))?;
     std::fs::create_dir_all(&args.out_dir).map_err(|e| Error::io(&args.out_dir, e))?;
-    let configs = configurations(&args.preset)?;
+    let mut configs = configurations(&args.preset)?;
+    for spec in &args.options {
+        let o = parse_options(spec)?;
+        o.validate(u32::MAX)?;
+        configs.push((format!("options {spec}"), "from --options".into(), o));
+    }
     let mut rows = Vec::new();
 
     // Warm up (page faults, thread pool) so the first timed pair is not penalised.
