@@ -307,16 +307,28 @@ pub fn refine_locally(
     if w < 2 {
         return;
     }
-    // Horizontal gradient of the right view (central differences, borders replicated).
-    let mut grad = vec![0f32; w * h];
-    grad.par_chunks_mut(w).enumerate().for_each(|(y, g)| {
-        let row = right.row(y);
-        for (x, g) in g.iter_mut().enumerate() {
-            let a = row[x.saturating_sub(1)] as f32;
-            let b = row[(x + 1).min(w - 1)] as f32;
-            *g = 0.5 * (b - a);
-        }
-    });
+    // The right view and its horizontal gradient (central differences, borders replicated) as
+    // `f32`, each row padded with zeros so that a window of any disparity reads whole vectors.
+    let stride = w + 2 * PAD;
+    let mut right_f = vec![0f32; stride * h];
+    let mut grad = vec![0f32; stride * h];
+    right_f
+        .par_chunks_mut(stride)
+        .zip(grad.par_chunks_mut(stride))
+        .enumerate()
+        .for_each(|(y, (rf, g))| {
+            let row = right.row(y);
+            for (x, (rf, g)) in rf[PAD..PAD + w]
+                .iter_mut()
+                .zip(&mut g[PAD..PAD + w])
+                .enumerate()
+            {
+                *rf = row[x] as f32;
+                let a = row[x.saturating_sub(1)] as f32;
+                let b = row[(x + 1).min(w - 1)] as f32;
+                *g = 0.5 * (b - a);
+            }
+        });
     let mut similarity = [0f32; 256];
     for (d, s) in similarity.iter_mut().enumerate() {
         *s = (-(d as f32) / 12.0).exp();
@@ -324,10 +336,11 @@ pub fn refine_locally(
     let src = disparity.pixels().to_vec();
     let ctx = LocalFit {
         left,
-        right,
+        right: &right_f,
         grad: &grad,
+        stride,
         similarity: &similarity,
-        radius,
+        radius: radius.min(MAX_RADIUS),
         iterations,
     };
     disparity
@@ -337,16 +350,32 @@ pub fn refine_locally(
         .for_each(|(y, out)| refine_row_fast(&ctx, &src[y * w..(y + 1) * w], y, out));
 }
 
+/// Zeros on each side of a padded row of [`LocalFit`]: at least one window width.
+const PAD: usize = 16;
+
+/// Largest window radius of the local fit (window 9×9).
+const MAX_RADIUS: usize = 4;
+
 crate::avx2_variant!(fn refine_row_fast<'a, 'b>(ctx: &'b LocalFit<'a>, src: &'b [f32], y: usize, out: &'b mut [f32]) => refine_row);
 
 /// [`LocalFit::fit`] on every estimate of row `y` (`src` the row before refinement).
 #[inline(always)]
 fn refine_row(ctx: &LocalFit<'_>, src: &[f32], y: usize, out: &mut [f32]) {
+    // Windows of up to 7 columns fit one 8-lane vector, 9 columns two.
+    if ctx.radius <= 3 {
+        refine_row_with::<8>(ctx, src, y, out)
+    } else {
+        refine_row_with::<16>(ctx, src, y, out)
+    }
+}
+
+#[inline(always)]
+fn refine_row_with<const NC: usize>(ctx: &LocalFit<'_>, src: &[f32], y: usize, out: &mut [f32]) {
     for (x, (o, &d0)) in out.iter_mut().zip(src).enumerate() {
         if d0.is_nan() {
             continue;
         }
-        if let Some(d) = ctx.fit(x, y, d0) {
+        if let Some(d) = ctx.fit::<NC>(x, y, d0) {
             *o = d;
         }
     }
@@ -355,8 +384,11 @@ fn refine_row(ctx: &LocalFit<'_>, src: &[f32], y: usize, out: &mut [f32]) {
 /// Inputs of the local fit of [`refine_locally`].
 struct LocalFit<'a> {
     left: &'a Raster<u8>,
-    right: &'a Raster<u8>,
+    /// Right view, rows of `stride` values with [`PAD`] zeros on each side.
+    right: &'a [f32],
+    /// Horizontal gradient of the right view, laid out as `right`.
     grad: &'a [f32],
+    stride: usize,
     similarity: &'a [f32; 256],
     radius: usize,
     iterations: u32,
@@ -367,9 +399,10 @@ impl LocalFit<'_> {
     ///
     /// One pass over the window per step accumulates weighted sums (values taken relative to the
     /// centre's grey level, so the variances do not cancel in `f32`); means, variances and the
-    /// Gauss–Newton step follow from them.
+    /// Gauss–Newton step follow from them. Each window row is `NC` lanes wide (columns past the
+    /// window weigh 0), so every sum is a whole-vector operation.
     #[inline(always)]
-    fn fit(&self, x: usize, y: usize, d0: f32) -> Option<f32> {
+    fn fit<const NC: usize>(&self, x: usize, y: usize, d0: f32) -> Option<f32> {
         let (w, h) = (self.left.width(), self.left.height());
         let r = self.radius;
         let centre = *self.left.get(x, y);
@@ -377,15 +410,16 @@ impl LocalFit<'_> {
         let (y0, y1) = (y.saturating_sub(r), (y + r).min(h - 1));
         let (x0, x1) = (x.saturating_sub(r), (x + r).min(w - 1));
         let cols = x1 + 1 - x0;
+        let rows = y1 + 1 - y0;
         // The window's weights and left values (relative to the centre) do not depend on d:
-        // once per pixel, row-major with `cols` columns (radius ≤ 4: at most 81).
-        let mut wt = [0f32; 81];
-        let mut lv = [0f32; 81];
+        // once per pixel, `NC` lanes a row, zero weight past the window.
+        let mut wt = [[0f32; NC]; 2 * MAX_RADIUS + 1];
+        let mut lv = [[0f32; NC]; 2 * MAX_RADIUS + 1];
         for (j, yy) in (y0..=y1).enumerate() {
             let row = &self.left.row(yy)[x0..=x1];
             for (i, &v) in row.iter().enumerate() {
-                wt[j * cols + i] = self.similarity[v.abs_diff(centre) as usize];
-                lv[j * cols + i] = v as f32 - cf;
+                wt[j][i] = self.similarity[v.abs_diff(centre) as usize];
+                lv[j][i] = v as f32 - cf;
             }
         }
         let top = (w - 1) as f32;
@@ -401,43 +435,55 @@ impl LocalFit<'_> {
             if hi < lo {
                 return None;
             }
-            let n_cols = hi + 1 - lo;
-            // Column lo + i matches xs = lo + i − d = xi0 + i + f: one fraction for the window.
-            let xs0 = lo as f32 - d;
-            let mut xi0 = xs0 as usize;
-            let mut f = xs0 - xi0 as f32;
-            if xi0 + n_cols >= w {
-                // The last match is exactly the last column (f = 0): read it as 1 × the next.
-                if xi0 == 0 {
-                    return None;
+            let mut inside = [0f32; NC];
+            for (i, m) in inside.iter_mut().enumerate().take(cols) {
+                if (lo..=hi).contains(&(x0 + i)) {
+                    *m = 1.0;
                 }
-                xi0 -= 1;
-                f += 1.0;
             }
-            let (mut sw, mut sl, mut sr, mut sg) = (0f32, 0f32, 0f32, 0f32);
-            let (mut sll, mut srr, mut sgg, mut slg, mut srg) = (0f32, 0f32, 0f32, 0f32, 0f32);
+            // Column x0 + i matches xs = x0 + i − d = xi + i + f: one fraction for the window.
+            // lo ≤ hi keeps the reads within the padding; the check below is for safety.
+            let xs0 = x0 as f32 - d;
+            let xi = xs0.floor();
+            let f = xs0 - xi;
+            let start = PAD as isize + xi as isize;
+            if start < 0 || start as usize + NC + 1 > self.stride {
+                return None;
+            }
+            let start = start as usize;
+            let mut acc = [[0f32; NC]; 9];
             for (j, yy) in (y0..=y1).enumerate() {
-                let at = j * cols + (lo - x0);
-                let (wts, ls) = (&wt[at..at + n_cols], &lv[at..at + n_cols]);
-                let rrow = &self.right.row(yy)[xi0..xi0 + n_cols + 1];
-                let grow = &self.grad[yy * w + xi0..yy * w + xi0 + n_cols + 1];
-                for i in 0..n_cols {
-                    let (r0, r1) = (rrow[i] as f32, rrow[i + 1] as f32);
-                    let rv = r0 + f * (r1 - r0) - cf;
-                    let g = grow[i] + f * (grow[i + 1] - grow[i]);
-                    let (q, l) = (wts[i], ls[i]);
-                    sw += q;
-                    sl += q * l;
-                    sr += q * rv;
-                    sg += q * g;
-                    sll += q * l * l;
-                    srr += q * rv * rv;
-                    sgg += q * g * g;
-                    slg += q * l * g;
-                    srg += q * rv * g;
+                let at = yy * self.stride + start;
+                let lanes = |v: &[f32], from: usize| -> Option<[f32; NC]> {
+                    v.get(from..from + NC)?.try_into().ok()
+                };
+                let (Some(r0), Some(r1), Some(g0), Some(g1)) = (
+                    lanes(self.right, at),
+                    lanes(self.right, at + 1),
+                    lanes(self.grad, at),
+                    lanes(self.grad, at + 1),
+                ) else {
+                    return None;
+                };
+                let (wj, lj) = (&wt[j], &lv[j]);
+                let [a0, a1, a2, a3, a4, a5, a6, a7, a8] = &mut acc;
+                for i in 0..NC {
+                    let rv = r0[i] + f * (r1[i] - r0[i]) - cf;
+                    let g = g0[i] + f * (g1[i] - g0[i]);
+                    let (q, l) = (wj[i] * inside[i], lj[i]);
+                    a0[i] += q;
+                    a1[i] += q * l;
+                    a2[i] += q * rv;
+                    a3[i] += q * g;
+                    a4[i] += q * l * l;
+                    a5[i] += q * rv * rv;
+                    a6[i] += q * g * g;
+                    a7[i] += q * l * g;
+                    a8[i] += q * rv * g;
                 }
             }
-            let n = n_cols * (y1 + 1 - y0);
+            let [sw, sl, sr, sg, sll, srr, sgg, slg, srg] = acc.map(|a| a.iter().sum::<f32>());
+            let n = (hi + 1 - lo) * rows;
             if n < 4 || sw <= 0.0 {
                 return None;
             }
