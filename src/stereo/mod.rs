@@ -4,7 +4,9 @@
 //! Pipeline of [`match_pair`], each step an option of [`StereoOptions`]:
 //! 1. grey levels (sRGB code values, 0–255); optionally undo a vertical offset and small rotation
 //!    of the right view ([`rectify`]);
-//! 2. optionally match a half-size pair first and narrow each pixel's search ([`pyramid`]);
+//! 2. optionally match a half-size pair first and narrow each pixel's search ([`pyramid`]); from
+//!    its disparities, measure and undo the pair's residual vertical misalignment
+//!    ([`alignment`]);
 //! 3. matching costs, census ([`census`]) or SAD blocks ([`sad`]), computed row by row;
 //! 4. aggregation: semi-global matching on 8 or 4 paths ([`sgm`]) or the thesis' scanline
 //!    dynamic programming ([`dp`]);
@@ -20,6 +22,7 @@
 //! Threads: the two SGM sweeps run in parallel (rayon), and every row-wise step is parallel over
 //! rows. Hot loops are compiled twice and chosen at run time for AVX2 ([`simd`]).
 
+pub mod alignment;
 pub mod census;
 pub mod cost;
 pub mod dp;
@@ -64,10 +67,11 @@ pub struct Disparity {
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct StereoStats {
     /// Wall-clock milliseconds of each sub-stage in order: `stereo.prepare`, `stereo.rectify`,
-    /// `stereo.coarse`, `stereo.cost` (census transform; per-row costs are computed inside
-    /// aggregation and counted there), `stereo.aggregate`, `stereo.decide`, `stereo.speckle`, `stereo.refine`,
-    /// `stereo.fill`, `stereo.smooth`; after `stereo.coarse` come the half-size level's own steps
-    /// as `stereo.coarse.cost`, … (parts of `stereo.coarse`). Steps that did not run are absent.
+    /// `stereo.coarse`, the half-size level's own steps as `stereo.coarse.cost`, … (parts of
+    /// `stereo.coarse`), `stereo.align` (measuring and undoing the residual misalignment),
+    /// `stereo.cost` (census transform; per-row costs are computed inside aggregation and
+    /// counted there), `stereo.aggregate`, `stereo.decide`, `stereo.speckle`, `stereo.refine`,
+    /// `stereo.fill`, `stereo.smooth`. Steps that did not run are absent.
     pub timings: Vec<(String, f64)>,
     /// Total matching time, milliseconds (decoded images in, disparity out).
     pub total_ms: f64,
@@ -77,6 +81,9 @@ pub struct StereoStats {
     pub peak_working_bytes: u64,
     /// Vertical offset (pixels) and rotation (degrees) undone in the right view, when estimated.
     pub misalignment: Option<(f32, f32)>,
+    /// The residual vertical misalignment undone in the right view (`refine_alignment`), when
+    /// one large enough to matter was found.
+    pub residual_alignment: Option<alignment::VerticalResidual>,
 }
 
 impl StereoStats {
@@ -162,7 +169,11 @@ pub(crate) fn match_grey(
         && (o.coarse_window as usize) < levels
         && (w.div_ceil(2) as u32) > coarse_max + 1
         && h >= 4;
-    let (bases, k) = if use_coarse {
+    let wants_alignment = o.refine_alignment
+        && o.aggregation != Aggregation::ScanlineDp
+        && (w.div_ceil(2) as u32) > coarse_max + 1
+        && h >= 4;
+    let (bases, k, r) = if use_coarse || wants_alignment {
         let start = Instant::now();
         let (cl, cr) = (pyramid::reduce(l), pyramid::reduce(r));
         // The coarse level only centres each pixel's window, and the window's margin absorbs
@@ -171,19 +182,25 @@ pub(crate) fn match_grey(
         // are filled with the background and the finer level searches around it.
         let coarse_opts = StereoOptions {
             max_disparity: coarse_max,
-            coarse_levels: o.coarse_levels - 1,
+            coarse_levels: o.coarse_levels.saturating_sub(1),
             aggregation: Aggregation::Sgm4,
             uniqueness: 0,
             speckle_size: 0,
             fill: true,
             smoothing_passes: 0,
             local_refinement_radius: 0,
+            refine_alignment: false,
             ..o.clone()
         };
         let mut coarse_stats = StereoStats::default();
         let (coarse, _) = match_grey(&cl, &cr, &coarse_opts, &mut coarse_stats)?;
-        let k = o.coarse_window as usize;
-        let bases = pyramid::window_bases(&coarse, w, h, k, o.max_disparity as usize);
+        let (bases, k) = if use_coarse {
+            let k = o.coarse_window as usize;
+            let bases = pyramid::window_bases(&coarse, w, h, k, o.max_disparity as usize);
+            (Some(bases), k)
+        } else {
+            (None, levels)
+        };
         stats.peak_working_bytes = coarse_stats.peak_working_bytes;
         stats
             .timings
@@ -193,10 +210,21 @@ pub(crate) fn match_grey(
             let sub = name.strip_prefix("stereo.").unwrap_or(&name);
             stats.timings.push((format!("stereo.coarse.{sub}"), ms));
         }
-        (Some(bases), k)
+        let aligned = if wants_alignment {
+            stats.time("stereo.align", || align_residual(l, r, &coarse))
+        } else {
+            None
+        };
+        if let Some((m, warped)) = aligned {
+            stats.residual_alignment = Some(m);
+            (bases, k, std::borrow::Cow::Owned(warped))
+        } else {
+            (bases, k, std::borrow::Cow::Borrowed(r))
+        }
     } else {
-        (None, levels)
+        (None, levels, std::borrow::Cow::Borrowed(r))
     };
+    let r: &Raster<u8> = &r;
 
     let cost = stats.time("stereo.cost", || make_cost(l, r, o));
     let cost_bytes = match o.cost {
@@ -319,6 +347,25 @@ pub(crate) fn match_grey(
         }
     }
     Ok((disparity, confidence))
+}
+
+/// Smallest residual misalignment worth resampling the right view for, pixels at the worst
+/// corner: resampling softens the view a little, and the estimate's own spread on pairs rectified
+/// exactly is about 0.05 px (docs/stereo-eval.md).
+const MIN_ALIGNMENT_CORRECTION_PX: f32 = 0.1;
+
+/// The residual misalignment of `r` measured from the half-size disparities, and `r` with it
+/// undone, when it is large enough to matter.
+fn align_residual(
+    l: &Raster<u8>,
+    r: &Raster<u8>,
+    coarse: &Raster<f32>,
+) -> Option<(alignment::VerticalResidual, Raster<u8>)> {
+    let m = alignment::estimate_residual(l, r, coarse, 2)?;
+    if m.largest(l.width(), l.height()) < MIN_ALIGNMENT_CORRECTION_PX {
+        return None;
+    }
+    Some((m, m.apply(r)))
 }
 
 fn make_cost<'a>(

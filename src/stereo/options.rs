@@ -46,13 +46,16 @@ pub enum Subpixel {
 #[serde(rename_all = "snake_case")]
 pub enum Preset {
     /// Census 5×5, 4-path SGM; a half-size pass narrows each pixel's search to 16 disparities;
-    /// light refinement (3×3 local fit, one smoothing pass).
+    /// light refinement (3×3 local fit, one smoothing pass); residual misalignment undone as in
+    /// `Balanced`.
     Fast,
-    /// Census 9×7, 8-path SGM; a half-size pass narrows each pixel's search to 32 disparities;
-    /// equiangular sub-pixel, 5×5 local fit, L/R check, uniqueness 5 %, speckles < 100 px,
+    /// Census 9×7, 8-path SGM; a half-size pass narrows each pixel's search to 32 disparities
+    /// and measures the pair's residual vertical misalignment, undone before the full-size
+    /// match; equiangular sub-pixel, 5×5 local fit, L/R check, uniqueness 5 %, speckles < 100 px,
     /// background fill, 3 passes of edge-aware smoothing. The default.
     Balanced,
-    /// As `Balanced` but searching the full range at full size (no coarse-to-fine).
+    /// As `Balanced` but searching the full range at full size (the half-size pass only measures
+    /// the misalignment).
     Quality,
 }
 
@@ -140,6 +143,10 @@ pub struct StereoOptions {
     pub coarse_window: u32,
     /// Estimate and undo a global vertical offset (±8 px) and rotation (≤ 1°) of the right view.
     pub correct_misalignment: bool,
+    /// Measure the residual vertical offset and rotation of a nearly rectified pair (under
+    /// ±2 px) from the half-size level's disparities and undo it before the full-size match
+    /// (`alignment::estimate_residual`); without coarse-to-fine a half-size match is made for it.
+    pub refine_alignment: bool,
 }
 
 impl Default for StereoOptions {
@@ -172,6 +179,7 @@ impl StereoOptions {
             coarse_levels: 1,
             coarse_window: 32,
             correct_misalignment: false,
+            refine_alignment: true,
         };
         match preset {
             Preset::Balanced => balanced,

@@ -100,13 +100,23 @@ pub fn run(args: Args) -> parallax::Result<()> {
         result.stats.total_ms,
         "stereo pair given",
     );
+    let (w, h) = (result.disparity.width(), result.disparity.height());
     for (name, ms) in &result.stats.timings {
-        trace.record(
-            name.clone(),
-            StageStatus::Computed,
-            *ms,
-            "sub-stage of stereo",
-        );
+        let why = match (name.as_str(), &result.stats.residual_alignment) {
+            ("stereo.align", Some(m)) => format!(
+                "sub-stage of stereo: right view moved along its columns by up to {:.2} px \
+                 (offset {:.3} px, {:.6} px per column, {:.6} px per row)",
+                m.largest(w, h),
+                m.offset,
+                m.per_column,
+                m.per_row
+            ),
+            ("stereo.align", None) => {
+                "sub-stage of stereo: no residual misalignment worth undoing".to_string()
+            }
+            _ => "sub-stage of stereo".to_string(),
+        };
+        trace.record(name.clone(), StageStatus::Computed, *ms, why);
     }
     if let Some((dy, angle)) = result.stats.misalignment {
         trace.warn(format!(

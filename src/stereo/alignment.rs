@@ -1,0 +1,351 @@
+//! Residual misalignment of a nearly rectified pair, measured from a disparity estimate.
+//!
+//! Pairs rectified from an imperfect calibration (Middlebury 2014's "imperfect" scenes; most
+//! cameras after a knock) keep a vertical offset of a fraction of a pixel that changes slowly
+//! across the image. Census costs and the local sub-pixel fit compare rows, so such an offset
+//! costs accuracy everywhere. [`estimate_residual`] measures it at textured pixels whose disparity
+//! is known roughly (the coarse level's), far cheaper than the search of
+//! [`super::rectify::estimate_misalignment`], whose range (±8 px) it does not need, and
+//! [`VerticalResidual::apply`] undoes it by resampling the right view along columns only (a
+//! horizontal shift is a disparity, which matching finds anyway).
+
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+
+use crate::image::Raster;
+
+/// The vertical position of the right view's content relative to the left's, an affine function
+/// of the pixel: `v(x, y) = offset + per_column · (x − w/2) + per_row · (y − h/2)` pixels
+/// (positive: lower in the right view). `per_column` is a small rotation (radians), `per_row` a
+/// vertical scale difference.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct VerticalResidual {
+    /// Offset at the image centre, pixels.
+    pub offset: f32,
+    /// Change per pixel to the right, pixels per pixel.
+    pub per_column: f32,
+    /// Change per pixel down, pixels per pixel.
+    pub per_row: f32,
+}
+
+impl VerticalResidual {
+    /// The offset at pixel (x, y) of an image `w × h`, pixels.
+    pub fn at(&self, x: f32, y: f32, w: usize, h: usize) -> f32 {
+        self.offset + self.per_column * (x - w as f32 / 2.0) + self.per_row * (y - h as f32 / 2.0)
+    }
+
+    /// Largest offset over an image `w × h` (at a corner), pixels.
+    pub fn largest(&self, w: usize, h: usize) -> f32 {
+        self.offset.abs()
+            + self.per_column.abs() * w as f32 / 2.0
+            + self.per_row.abs() * h as f32 / 2.0
+    }
+
+    /// `right` resampled so that its content lies on the left view's rows: pixel (x, y) takes
+    /// `right(x, y + v(x, y))`, Catmull–Rom along the column (sharper than bilinear), rows beyond
+    /// the image replicated.
+    pub fn apply(&self, right: &Raster<u8>) -> Raster<u8> {
+        let (w, h) = (right.width(), right.height());
+        let mut out = vec![0u8; w * h];
+        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            for (x, o) in row.iter_mut().enumerate() {
+                let sy = y as f32 + self.at(x as f32, y as f32, w, h);
+                let y0 = sy.floor();
+                let t = sy - y0;
+                let at = |k: isize| {
+                    let yy = (y0 as isize + k).clamp(0, h as isize - 1) as usize;
+                    *right.get(x, yy) as f32
+                };
+                let (p0, p1, p2, p3) = (at(-1), at(0), at(1), at(2));
+                let v = p1
+                    + 0.5
+                        * t
+                        * (p2 - p0
+                            + t * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3
+                                + t * (3.0 * (p1 - p2) + p3 - p0)));
+                *o = (v + 0.5).clamp(0.0, 255.0) as u8;
+            }
+        });
+        Raster::from_vec(w, h, out)
+    }
+}
+
+/// Largest residual vertical offset measured, pixels; a sample whose match lies farther is
+/// dropped (larger offsets need `correct_misalignment`).
+pub const MAX_RESIDUAL_OFFSET: f32 = 2.0;
+
+/// Window half-size of a sample, pixels (window 7×7).
+const RADIUS: usize = 3;
+
+/// Distance between samples, pixels, in x and in y.
+const GRID: usize = 8;
+
+/// Gauss–Newton steps per sample.
+const ITERATIONS: usize = 6;
+
+/// Fewest accepted samples for an estimate.
+const MIN_SAMPLES: usize = 64;
+
+/// One sample: where the right view's content matching left pixel (x, y) sits vertically.
+#[derive(Debug, Clone, Copy)]
+struct Shift {
+    /// Right-view column of the match, pixels.
+    x: f32,
+    /// Row of the left pixel.
+    y: f32,
+    /// Vertical offset of the match, pixels (positive: lower in the right view).
+    v: f32,
+}
+
+/// The vertical misalignment of `right` relative to `left` from `disparity`: a rough disparity of
+/// the left view with `scale` left pixels per pixel (2 for the half-size level), NaN where
+/// unknown.
+///
+/// At a grid of left pixels with texture in both directions, a two-dimensional Lucas–Kanade fit
+/// (inverse compositional, window mean and contrast removed so exposure changes do not matter)
+/// finds where the window lies in the right view near `(x − d, y)`; a robust plane fit (Tukey
+/// weights) of the vertical shifts against the right-view column and the row gives the
+/// [`VerticalResidual`].
+/// `None` when fewer than 64 samples converge (textureless or tiny images).
+pub fn estimate_residual(
+    left: &Raster<u8>,
+    right: &Raster<u8>,
+    disparity: &Raster<f32>,
+    scale: usize,
+) -> Option<VerticalResidual> {
+    let (w, h) = (left.width(), left.height());
+    let margin = RADIUS + 2 + MAX_RESIDUAL_OFFSET.ceil() as usize;
+    if w < 2 * margin + 1 || h < 2 * margin + 1 || scale == 0 {
+        return None;
+    }
+    let rows: Vec<usize> = (margin..h - margin).step_by(GRID).collect();
+    let shifts: Vec<Shift> = rows
+        .par_iter()
+        .flat_map_iter(|&y| {
+            (margin..w - margin).step_by(GRID).filter_map(move |x| {
+                let (cx, cy) = (
+                    (x / scale).min(disparity.width() - 1),
+                    (y / scale).min(disparity.height() - 1),
+                );
+                let d = *disparity.get(cx, cy) * scale as f32;
+                track(left, right, x, y, d)
+            })
+        })
+        .collect();
+    if shifts.len() < MIN_SAMPLES {
+        return None;
+    }
+    robust_plane(&shifts, w as f32 / 2.0, h as f32 / 2.0)
+}
+
+/// The vertical shift of left pixel (x, y)'s window in the right view, starting at `x − d`.
+fn track(left: &Raster<u8>, right: &Raster<u8>, x: usize, y: usize, d: f32) -> Option<Shift> {
+    let (w, h) = (right.width() as f32, right.height() as f32);
+    let start = x as f32 - d;
+    let reach = (RADIUS + 2) as f32;
+    if !start.is_finite() || start < reach || start > w - 1.0 - reach {
+        return None;
+    }
+    // Template: the left window, mean and contrast removed, and its gradients.
+    const N: usize = (2 * RADIUS + 1) * (2 * RADIUS + 1);
+    let mut t = [0f32; N];
+    let mut gx = [0f32; N];
+    let mut gy = [0f32; N];
+    let at = |xx: usize, yy: usize| *left.get(xx, yy) as f32;
+    let mut i = 0;
+    for yy in y - RADIUS..=y + RADIUS {
+        for xx in x - RADIUS..=x + RADIUS {
+            t[i] = at(xx, yy);
+            gx[i] = 0.5 * (at(xx + 1, yy) - at(xx - 1, yy));
+            gy[i] = 0.5 * (at(xx, yy + 1) - at(xx, yy - 1));
+            i += 1;
+        }
+    }
+    let (mean, sd) = mean_sd(&t);
+    if sd < 2.0 {
+        return None;
+    }
+    for (v, (a, b)) in t.iter_mut().zip(gx.iter_mut().zip(gy.iter_mut())) {
+        *v = (*v - mean) / sd;
+        *a /= sd;
+        *b /= sd;
+    }
+    // Hessian of the template (constant in the inverse compositional form).
+    let (mut hxx, mut hxy, mut hyy) = (0f32, 0f32, 0f32);
+    for (a, b) in gx.iter().zip(&gy) {
+        hxx += a * a;
+        hxy += a * b;
+        hyy += b * b;
+    }
+    let det = hxx * hyy - hxy * hxy;
+    // Texture in both directions: the smaller eigenvalue of the Hessian.
+    let trace = hxx + hyy;
+    let min_eig = 0.5 * (trace - ((hxx - hyy).powi(2) + 4.0 * hxy * hxy).sqrt());
+    if min_eig < 0.05 * N as f32 || det <= 0.0 {
+        return None;
+    }
+    let (mut u, mut v) = (start, y as f32);
+    let mut r = [0f32; N];
+    const SIDE: usize = 2 * RADIUS + 1;
+    for _ in 0..ITERATIONS {
+        // One fraction for the whole window: bilinear weights once, then rows read as slices.
+        let (x0, y0) = (u.floor(), v.floor());
+        let (fx, fy) = (u - x0, v - y0);
+        let (x0, y0) = (x0 as usize - RADIUS, y0 as usize - RADIUS);
+        for j in 0..SIDE {
+            let top = &right.row(y0 + j)[x0..x0 + SIDE + 1];
+            let bottom = &right.row(y0 + j + 1)[x0..x0 + SIDE + 1];
+            for i in 0..SIDE {
+                let a = top[i] as f32 + fx * (top[i + 1] as f32 - top[i] as f32);
+                let b = bottom[i] as f32 + fx * (bottom[i + 1] as f32 - bottom[i] as f32);
+                r[j * SIDE + i] = a + fy * (b - a);
+            }
+        }
+        let (rm, rs) = mean_sd(&r);
+        if rs < 1.0 {
+            return None;
+        }
+        let (mut ex, mut ey) = (0f32, 0f32);
+        for i in 0..N {
+            let e = (r[i] - rm) / rs - t[i];
+            ex += gx[i] * e;
+            ey += gy[i] * e;
+        }
+        let du = (hyy * ex - hxy * ey) / det;
+        let dv = (hxx * ey - hxy * ex) / det;
+        if !(du.is_finite() && dv.is_finite()) {
+            return None;
+        }
+        u -= du.clamp(-1.0, 1.0);
+        v -= dv.clamp(-1.0, 1.0);
+        let off = v - y as f32;
+        if off.abs() > MAX_RESIDUAL_OFFSET
+            || (u - start).abs() > 2.0
+            || u < reach
+            || u > w - 1.0 - reach
+            || v < reach
+            || v > h - 1.0 - reach
+        {
+            return None;
+        }
+        if du.abs() < 0.01 && dv.abs() < 0.01 {
+            return Some(Shift {
+                x: u,
+                y: y as f32,
+                v: off,
+            });
+        }
+    }
+    None
+}
+
+/// Mean and standard deviation.
+fn mean_sd(v: &[f32]) -> (f32, f32) {
+    let n = v.len() as f32;
+    let mean = v.iter().sum::<f32>() / n;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f32>() / n;
+    (mean, var.sqrt())
+}
+
+/// `v ≈ offset + per_column · (x − cx) + per_row · (y − cy)` fitted with Tukey's biweight
+/// (iteratively reweighted least squares from the median, scale from the median absolute
+/// deviation).
+fn robust_plane(samples: &[Shift], cx: f32, cy: f32) -> Option<VerticalResidual> {
+    let mut vs: Vec<f32> = samples.iter().map(|s| s.v).collect();
+    vs.sort_by(f32::total_cmp);
+    let mut fit = VerticalResidual {
+        offset: vs[vs.len() / 2],
+        ..Default::default()
+    };
+    let residual = |f: &VerticalResidual, s: &Shift| {
+        s.v - f.offset - f.per_column * (s.x - cx) - f.per_row * (s.y - cy)
+    };
+    for _ in 0..8 {
+        let mut res: Vec<f32> = samples.iter().map(|s| residual(&fit, s).abs()).collect();
+        res.sort_by(f32::total_cmp);
+        // 4.685 σ with σ = 1.4826 · MAD: Tukey's usual cut-off; at least 0.1 px.
+        let cut = (4.685 * 1.4826 * res[res.len() / 2]).max(0.1);
+        let (mut normal, mut rhs) = (DMat3::ZERO, DVec3::ZERO);
+        for s in samples {
+            let q = (residual(&fit, s) / cut).abs();
+            if q >= 1.0 {
+                continue;
+            }
+            let wgt = ((1.0 - q * q) * (1.0 - q * q)) as f64;
+            let j = DVec3::new(1.0, (s.x - cx) as f64, (s.y - cy) as f64);
+            normal += DMat3::from_cols(j * j.x, j * j.y, j * j.z) * wgt;
+            rhs += j * (wgt * s.v as f64);
+        }
+        if normal.determinant().abs() < 1e-9 {
+            return None;
+        }
+        let p = normal.inverse() * rhs;
+        fit = VerticalResidual {
+            offset: p.x as f32,
+            per_column: p.y as f32,
+            per_row: p.z as f32,
+        };
+    }
+    let finite = fit.offset.is_finite() && fit.per_column.is_finite() && fit.per_row.is_finite();
+    finite.then_some(fit)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stereo::tests::texture;
+
+    /// A textured plane at disparity 6 whose right view sits `truth.at(x, y)` lower.
+    fn pair(truth: VerticalResidual) -> (Raster<u8>, Raster<u8>, Raster<f32>) {
+        let (w, h) = (160, 120);
+        let left = Raster::from_fn(w, h, |x, y| texture(x as f32, y as f32));
+        let right = Raster::from_fn(w, h, |x, y| {
+            let (xf, yf) = (x as f32, y as f32);
+            texture(xf + 6.0, yf - truth.at(xf, yf, w, h))
+        });
+        (left, right, Raster::filled(w / 2, h / 2, 3.0f32))
+    }
+
+    #[test]
+    fn finds_offset_rotation_and_scale_to_a_few_hundredths_of_a_pixel() {
+        for truth in [
+            VerticalResidual {
+                offset: 0.4,
+                ..Default::default()
+            },
+            VerticalResidual {
+                offset: -0.7,
+                per_column: 0.003,
+                per_row: -0.004,
+            },
+            VerticalResidual::default(),
+        ] {
+            let (l, r, coarse) = pair(truth);
+            let est = estimate_residual(&l, &r, &coarse, 2).expect("textured pair");
+            for (x, y) in [(0.0, 0.0), (159.0, 0.0), (0.0, 119.0), (159.0, 119.0)] {
+                let err = est.at(x, y, 160, 120) - truth.at(x, y, 160, 120);
+                assert!(err.abs() < 0.06, "{truth:?}: {est:?} at ({x}, {y})");
+            }
+            // Undoing it puts the right view's rows back on the left's.
+            let fixed = est.apply(&r);
+            let (_, aligned, _) = pair(VerticalResidual::default());
+            let mean_err = (0..160 * 120)
+                .filter(|p| (10..110).contains(&(p / 160)))
+                .map(|p| fixed.pixels()[p].abs_diff(aligned.pixels()[p]) as f32)
+                .sum::<f32>()
+                / (160.0 * 100.0);
+            assert!(mean_err < 6.0, "{truth:?}: mean grey error {mean_err}");
+        }
+    }
+
+    #[test]
+    fn flat_tiny_or_unknown_input_gives_none() {
+        let flat = Raster::filled(100, 80, 128u8);
+        let d = Raster::filled(50, 40, 2.0f32);
+        assert!(estimate_residual(&flat, &flat, &d, 2).is_none());
+        let tiny = Raster::filled(8, 8, 3u8);
+        assert!(estimate_residual(&tiny, &tiny, &Raster::filled(4, 4, 0.0), 2).is_none());
+        let (l, r, _) = pair(VerticalResidual::default());
+        assert!(estimate_residual(&l, &r, &Raster::filled(80, 60, f32::NAN), 2).is_none());
+    }
+}
