@@ -208,6 +208,36 @@ impl StereoOptions {
         }
     }
 
+    /// These options with the fields of a JSON object put over them, for example
+    /// `{"smoothing_passes": 2, "p2": 400}` (field names as in this struct, enums in snake case:
+    /// `"aggregation": "sgm4"`). Fields left out keep their value; the result is not validated
+    /// (that needs the image width, see [`StereoOptions::validate`]).
+    ///
+    /// # Errors
+    /// `InvalidArgument` when `json` is not an object of known fields with values of the right
+    /// type.
+    pub fn with_json(&self, json: &str) -> Result<Self> {
+        let bad = |e: serde_json::Error| Error::invalid(format!("stereo options {json:?}: {e}"));
+        let patch: serde_json::Value = serde_json::from_str(json).map_err(bad)?;
+        let Some(patch) = patch.as_object() else {
+            return Err(Error::invalid(format!(
+                "stereo options {json:?}: expected a JSON object of option fields"
+            )));
+        };
+        let mut merged = serde_json::to_value(self).map_err(bad)?;
+        if let Some(fields) = merged.as_object_mut() {
+            for (key, value) in patch {
+                if !fields.contains_key(key) {
+                    return Err(Error::invalid(format!(
+                        "stereo options: unknown field {key:?}"
+                    )));
+                }
+                fields.insert(key.clone(), value.clone());
+            }
+        }
+        serde_json::from_value(merged).map_err(bad)
+    }
+
     /// Checks every option against the image width.
     ///
     /// # Errors
@@ -315,6 +345,21 @@ mod tests {
         let partial: StereoOptions = serde_json::from_str(r#"{"max_disparity": 32}"#).unwrap();
         assert_eq!(partial.max_disparity, 32);
         assert_eq!(partial.p1, StereoOptions::default().p1);
+    }
+
+    #[test]
+    fn json_fields_go_over_the_preset_and_unknown_ones_are_refused() {
+        let fast = StereoOptions::preset(Preset::Fast);
+        let o = fast
+            .with_json(r#"{"smoothing_passes": 5, "aggregation": "sgm8"}"#)
+            .unwrap();
+        assert_eq!(o.smoothing_passes, 5);
+        assert_eq!(o.aggregation, Aggregation::Sgm8);
+        assert_eq!(o.census_radius, fast.census_radius);
+        for bad in [r#"{"smothing": 1}"#, "[1, 2]", r#"{"p1": "high"}"#, "{"] {
+            let e = fast.with_json(bad).unwrap_err().to_string();
+            assert!(e.contains("stereo options"), "{bad}: {e}");
+        }
     }
 
     #[test]

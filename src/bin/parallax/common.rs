@@ -67,3 +67,18 @@ impl CommonArgs {
         bar
     }
 }
+
+/// `base` with the fields of `--options` over it: inline JSON or `@FILE` (see
+/// `StereoOptions::with_json`).
+pub fn stereo_options(
+    base: &parallax::stereo::StereoOptions,
+    spec: &str,
+) -> parallax::Result<parallax::stereo::StereoOptions> {
+    match spec.strip_prefix('@') {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| parallax::Error::io(path, e))?;
+            base.with_json(&text)
+        }
+        None => base.with_json(spec),
+    }
+}

@@ -34,6 +34,11 @@ pub struct Args {
     /// Option preset: fast, balanced or quality.
     #[arg(long, default_value = "balanced", value_name = "P")]
     preset: String,
+    /// Any matcher option on its own, over the preset: a JSON object of `StereoOptions` fields,
+    /// inline or `@FILE` (for example `{"smoothing_passes": 2, "aggregation": "sgm4"}`). The
+    /// flags below and --max-disparity take precedence.
+    #[arg(long, value_name = "JSON|@FILE")]
+    options: Option<String>,
     /// Keep pixels without an estimate as NaN (inf in the PFM) instead of filling them.
     #[arg(long)]
     no_fill: bool,
@@ -79,6 +84,9 @@ pub fn run(args: Args) -> parallax::Result<()> {
     };
     let preset: Preset = args.preset.parse()?;
     let mut options = StereoOptions::preset(preset);
+    if let Some(spec) = &args.options {
+        options = crate::common::stereo_options(&options, spec)?;
+    }
     options.max_disparity = args
         .max_disparity
         .or_else(|| {
@@ -87,8 +95,12 @@ pub fn run(args: Args) -> parallax::Result<()> {
                 .map(|n| n.saturating_sub(1).max(1))
         })
         .unwrap_or(64);
-    options.fill = !args.no_fill;
-    options.correct_misalignment = args.correct_misalignment;
+    if args.no_fill {
+        options.fill = false;
+    }
+    if args.correct_misalignment {
+        options.correct_misalignment = true;
+    }
 
     let spinner = args.common.spinner("matching");
     let result = stereo::match_pair(&left.view(), &right.view(), &options);

@@ -75,16 +75,6 @@ pub struct StereoArgs {
     common: CommonArgs,
 }
 
-/// The options of `--options`: inline JSON or `@FILE`, fields left out from `balanced`.
-fn parse_options(spec: &str) -> Result<StereoOptions> {
-    let text = match spec.strip_prefix('@') {
-        Some(path) => std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?,
-        None => spec.to_string(),
-    };
-    serde_json::from_str(&text)
-        .map_err(|e| Error::invalid(format!("--options {spec:?}: not StereoOptions JSON: {e}")))
-}
-
 /// Dispatches `parallax eval …`.
 pub fn run(args: Args) -> Result<()> {
     match args.what {
@@ -235,7 +225,7 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out_dir).map_err(|e| Error::io(&args.out_dir, e))?;
     let mut configs = configurations(&args.preset)?;
     for spec in &args.options {
-        let o = parse_options(spec)?;
+        let o = crate::common::stereo_options(&StereoOptions::default(), spec)?;
         o.validate(u32::MAX)?;
         configs.push((format!("options {spec}"), "from --options".into(), o));
     }
