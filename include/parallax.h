@@ -95,11 +95,13 @@ enum plx_stereo_preset
   : uint32_t
 #endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
  {
-  // Census 5×5, 4-path SGM after a half-resolution pass; fastest.
+  // Census 5×5, 4-path SGM after a half-resolution pass, light smoothing; fastest.
   PLX_STEREO_PRESET_FAST = 0,
-  // Census 9×7, 8-path SGM, consistency checks, fill and edge-aware smoothing (default).
+  // Census 9×7, 8-path SGM after a half-resolution pass that also measures and undoes the
+  // pair's residual vertical misalignment; consistency checks, fill and edge-aware smoothing
+  // (default).
   PLX_STEREO_PRESET_BALANCED = 1,
-  // As balanced with stricter checks and more smoothing.
+  // As balanced, but the full range searched at full size and a wider sub-pixel fit.
   PLX_STEREO_PRESET_QUALITY = 2,
 };
 #ifndef __cplusplus

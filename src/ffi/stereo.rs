@@ -12,11 +12,13 @@ use crate::stereo::{Aggregation, CostKind, Preset, StereoOptions};
 #[repr(u32)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum plx_stereo_preset {
-    /// Census 5×5, 4-path SGM after a half-resolution pass; fastest.
+    /// Census 5×5, 4-path SGM after a half-resolution pass, light smoothing; fastest.
     Fast = 0,
-    /// Census 9×7, 8-path SGM, consistency checks, fill and edge-aware smoothing (default).
+    /// Census 9×7, 8-path SGM after a half-resolution pass that also measures and undoes the
+    /// pair's residual vertical misalignment; consistency checks, fill and edge-aware smoothing
+    /// (default).
     Balanced = 1,
-    /// As balanced with stricter checks and more smoothing.
+    /// As balanced, but the full range searched at full size and a wider sub-pixel fit.
     Quality = 2,
 }
 

@@ -46,16 +46,15 @@ pub enum Subpixel {
 #[serde(rename_all = "snake_case")]
 pub enum Preset {
     /// Census 5×5, 4-path SGM; a half-size pass narrows each pixel's search to 16 disparities;
-    /// light refinement (3×3 local fit, one smoothing pass); residual misalignment undone as in
-    /// `Balanced`.
+    /// residual misalignment undone as in `Balanced`; no local fit, one smoothing pass.
     Fast,
     /// Census 9×7, 8-path SGM; a half-size pass narrows each pixel's search to 32 disparities
     /// and measures the pair's residual vertical misalignment, undone before the full-size
-    /// match; equiangular sub-pixel, 5×5 local fit, L/R check, uniqueness 5 %, speckles < 100 px,
-    /// background fill, 3 passes of edge-aware smoothing. The default.
+    /// match; equiangular sub-pixel, 3×3 local fit, L/R check, uniqueness 5 %, speckles
+    /// < 100 px, background fill, 3 passes of edge-aware smoothing. The default.
     Balanced,
-    /// As `Balanced` but searching the full range at full size (the half-size pass only measures
-    /// the misalignment).
+    /// The thorough set: the full range searched at full size (the half-size pass only measures
+    /// the misalignment) and a 5×5 local fit; otherwise as `Balanced`.
     Quality,
 }
 
@@ -169,7 +168,7 @@ impl StereoOptions {
             p2_gradient_scale: 16.0,
             dp_penalty: 4.0,
             subpixel: Subpixel::Equiangular,
-            local_refinement_radius: 2,
+            local_refinement_radius: 1,
             lr_max_diff: Some(1),
             uniqueness: 5,
             speckle_size: 100,
@@ -187,12 +186,13 @@ impl StereoOptions {
                 census_radius: (2, 2),
                 aggregation: Aggregation::Sgm4,
                 coarse_window: 16,
-                local_refinement_radius: 1,
+                local_refinement_radius: 0,
                 smoothing_passes: 1,
                 ..balanced
             },
             Preset::Quality => StereoOptions {
                 coarse_levels: 0,
+                local_refinement_radius: 2,
                 ..balanced
             },
         }

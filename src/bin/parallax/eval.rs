@@ -197,7 +197,16 @@ fn configurations(preset: &str) -> Result<Vec<(String, String, StereoOptions)>> 
         ),
         thesis,
     ));
+    // `balanced` is census + 8-path SGM + coarse-to-fine (`quality` the full search with a wider
+    // fit and uniqueness); the other combinations of paths and search.
     for (name, o) in [
+        (
+            "census+sgm8",
+            StereoOptions {
+                coarse_levels: 0,
+                ..b.clone()
+            },
+        ),
         (
             "census+sgm4",
             StereoOptions {
