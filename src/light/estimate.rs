@@ -167,11 +167,12 @@ pub fn estimate_lighting(
             ..options.fit
         },
     )?;
-    let environment = Environment::from_photo(
+    let environment = Environment::from_photo_with_up(
         photo,
         Some(depth),
         camera,
         point,
+        up_v,
         &fit.lights,
         &options.environment,
     )?;
