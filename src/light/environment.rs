@@ -27,6 +27,7 @@
 //! itself keeps values up to the largest half float (65504), as an RGBA16F texture can hold.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::filters::{check_same, check_size, luminance};
 use super::model::{
@@ -566,23 +567,36 @@ impl Environment {
             .map_or(1.0, |(_, far)| far);
         // Long enough to reach every surface of the depth map from the point.
         let reach = 2.0 * (far + point.length()) + 1.0;
-        let mut values = Raster::filled(ew, eh, [0.0f32; 3]);
-        let mut weight = Raster::filled(ew, eh, 0.0f32);
-        for y in 0..eh {
-            for x in 0..ew {
+        // One ray march per cell, rows in parallel.
+        let cells: Vec<Option<[f32; 3]>> = (0..ew * eh)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % ew, i / ew);
                 let dir =
                     equirect_direction((x as f32 + 0.5) / ew as f32, (y as f32 + 0.5) / eh as f32);
-                if let Some((px, py)) = march(depth, camera, point, dir, reach) {
+                march(depth, camera, point, dir, reach).map(|(px, py)| {
                     let c = *photo.get(px, py);
-                    *values.get_mut(x, y) = if ldr {
+                    if ldr {
                         inverse_tone_map(c, options.ldr_peak)
                     } else {
                         sanitize(c, HALF_MAX)
-                    };
-                    *weight.get_mut(x, y) = 1.0;
-                }
-            }
-        }
+                    }
+                })
+            })
+            .collect();
+        let mut weight = Raster::from_vec(
+            ew,
+            eh,
+            cells
+                .iter()
+                .map(|c| if c.is_some() { 1.0f32 } else { 0.0 })
+                .collect(),
+        );
+        let mut values = Raster::from_vec(
+            ew,
+            eh,
+            cells.into_iter().map(|c| c.unwrap_or([0.0; 3])).collect(),
+        );
         let mut seen = 0.0f64;
         let mut total = 0.0f64;
         for y in 0..eh {
