@@ -901,6 +901,50 @@ mod tests {
     }
 
     #[test]
+    fn a_ray_passing_behind_an_object_goes_on_to_what_is_behind() {
+        // A pillar (0.6, 20 cm wide, 2 m away) in front of a wall (0.3, 5 m away); from a point
+        // between them, a ray that crosses behind the pillar (1.75 m behind its front) meets the
+        // wall, and one towards the pillar's front from the camera's side sees the pillar.
+        let camera = Camera::from_focal(60.0, 120, 90).unwrap();
+        let pillar = |x: usize| ((x as f32 + 0.5 - camera.cx) * 2.0 / camera.fx).abs() < 0.1;
+        let depth = Raster::from_fn(120, 90, |x, _| if pillar(x) { 2.0 } else { 5.0 });
+        let photo = Raster::from_fn(
+            120,
+            90,
+            |x, _| if pillar(x) { [0.6f32; 3] } else { [0.3; 3] },
+        );
+        let point = Vec3::new(0.3, 0.0, -3.0);
+        let env = Environment::from_photo(
+            &photo,
+            Some(&depth),
+            &camera,
+            point,
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        let level = &env.cube.levels[0];
+        let behind =
+            super::super::prefilter::sample_cube(level, Vec3::new(-0.8, 0.0, -2.0).normalize());
+        assert!((behind[0] - 0.3).abs() < 1e-4, "{behind:?}");
+        // From a point in front of the pillar, towards it.
+        let front = Environment::from_photo(
+            &photo,
+            Some(&depth),
+            &camera,
+            Vec3::new(0.3, 0.0, -1.0),
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        let towards = super::super::prefilter::sample_cube(
+            &front.cube.levels[0],
+            Vec3::new(-0.3, 0.0, -1.0).normalize(),
+        );
+        assert!((towards[0] - 0.6).abs() < 1e-4, "{towards:?}");
+    }
+
+    #[test]
     fn unseen_directions_take_what_was_seen_at_their_elevation() {
         // Behind the camera, below the horizon, the floor goes on (0.7 in front of the table, seen
         // from a point above it); above the horizon the sky (0.5).
