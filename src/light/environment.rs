@@ -4,14 +4,19 @@
 //! - [`Environment::from_equirect`]: a host's HDR/EXR latitude-longitude map (the reference's
 //!   layout: the centre column looks along −Z, +X at three quarters, the top row is +Y).
 //! - [`Environment::from_photo`]: the photo re-projected through its depth onto a sphere around the
-//!   insertion point. Each pixel's 3D point is seen from the insertion point in some direction; the
-//!   nearest point wins a direction. Pixels without depth (sky, far lamps) are taken as infinitely
-//!   far, in their camera-ray direction. LDR photos are expanded to HDR first (see
-//!   [`inverse_tone_map`]). Directions the camera never saw (behind it, under the table…) are
-//!   filled by pull-push: the map is averaged down a pyramid counting only seen cells, and each
-//!   unseen cell takes the value of the finest level that saw something around it — a smooth
-//!   extension of what surrounds the hole, so a room stays a room rather than turning black.
-//!   Lights (detected or fitted) are then drawn into the map as discs of their solid angle.
+//!   insertion point. Each direction from the point is ray-marched through the depth map (see
+//!   `march`): the first visible surface the ray meets is what the point sees there, with that
+//!   pixel's colour (Lambertian surfaces look the same from the point as from the camera). This
+//!   keeps occlusion right where forward-splatting the pixels does not: a table top 2 cm below
+//!   the point fills the whole lower hemisphere from a handful of pixels, and hides the floor the
+//!   camera sees in front of it. Pixels without depth (sky, far lamps) are infinitely far. LDR
+//!   photos are expanded to HDR first (see [`inverse_tone_map`]). Directions the camera never saw
+//!   (behind it, above it, behind objects) are filled in two steps: small holes by pull-push (the
+//!   map averaged down a few pyramid levels counting only seen cells), and what is left by the
+//!   mean of the seen directions at the same elevation above the horizon of gravity `up`
+//!   ([`Environment::from_photo_with_up`]): a room goes on behind the camera much as it looks in
+//!   front, floor below, walls at the horizon, ceiling above. Lights (detected or fitted) are
+//!   then drawn into the map as discs of their solid angle.
 //! - [`Environment::from_cube`]: a cube map directly.
 //!
 //! SH projection robustness: every texel is made finite and non-negative (NaN → 0, negative → 0,
@@ -22,6 +27,7 @@
 //! itself keeps values up to the largest half float (65504), as an RGBA16F texture can hold.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::filters::{check_same, check_size, luminance};
 use super::model::{
@@ -275,10 +281,11 @@ fn equirect_to_cube(map: &Raster<[f32; 3]>, n: usize) -> CubeLevel {
     }
 }
 
-/// Fills cells with zero weight by pull-push (see the module documentation).
-fn pull_push(values: &mut Raster<[f32; 3]>, weight: &mut Raster<f32>) {
+/// Fills cells with zero weight by pull-push (see the module documentation), from at most
+/// `levels` pyramid levels up: holes wider than about `2^levels` cells stay empty.
+fn pull_push(values: &mut Raster<[f32; 3]>, weight: &mut Raster<f32>, levels: u32) {
     let (w, h) = (values.width(), values.height());
-    if w <= 1 && h <= 1 {
+    if (w <= 1 && h <= 1) || levels == 0 {
         return;
     }
     let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
@@ -303,7 +310,7 @@ fn pull_push(values: &mut Raster<[f32; 3]>, weight: &mut Raster<f32>) {
         }
     }
     if coarse_w.pixels().iter().any(|v| *v <= 0.0) && coarse_w.pixels().iter().any(|v| *v > 0.0) {
-        pull_push(&mut coarse, &mut coarse_w);
+        pull_push(&mut coarse, &mut coarse_w, levels - 1);
     }
     for y in 0..h {
         for x in 0..w {
@@ -313,6 +320,127 @@ fn pull_push(values: &mut Raster<[f32; 3]>, weight: &mut Raster<f32>) {
             }
         }
     }
+}
+
+/// Pyramid levels of the pull-push that fills small holes (up to about 2^this cells wide).
+const HOLE_LEVELS: u32 = 3;
+
+/// Elevation bands of [`fill_by_elevation`] (equal in solid angle).
+const ELEVATION_BANDS: usize = 24;
+
+/// Fills the cells of an equirect map that have no weight with the mean of the seen cells at the
+/// same elevation above the horizon of `up` (by solid angle; bands with nothing seen take the
+/// nearest band that has something): a room goes on around the point behind the camera much as
+/// it looks in front of it, its floor below, its walls at the horizon, its ceiling above.
+fn fill_by_elevation(values: &mut Raster<[f32; 3]>, weight: &mut Raster<f32>, up: Vec3) {
+    let (w, h) = (values.width(), values.height());
+    let band_of = |x: usize, y: usize| {
+        let d = equirect_direction((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+        let e = d.dot(up).clamp(-1.0, 1.0);
+        (((e + 1.0) / 2.0 * ELEVATION_BANDS as f32) as usize).min(ELEVATION_BANDS - 1)
+    };
+    let mut sum = [[0.0f64; 3]; ELEVATION_BANDS];
+    let mut area = [0.0f64; ELEVATION_BANDS];
+    for y in 0..h {
+        let a = (((y as f32 + 0.5) / h as f32) * std::f32::consts::PI).sin() as f64;
+        for x in 0..w {
+            if *weight.get(x, y) > 0.0 {
+                let b = band_of(x, y);
+                let c = values.get(x, y);
+                for k in 0..3 {
+                    sum[b][k] += c[k] as f64 * a;
+                }
+                area[b] += a;
+            }
+        }
+    }
+    let filled: Vec<Option<[f32; 3]>> = (0..ELEVATION_BANDS)
+        .map(|b| {
+            (0..ELEVATION_BANDS)
+                .filter(|&o| area[o] > 0.0)
+                .min_by_key(|&o| o.abs_diff(b))
+                .map(|o| sum[o].map(|v| (v / area[o]) as f32))
+        })
+        .collect();
+    for y in 0..h {
+        for x in 0..w {
+            if *weight.get(x, y) <= 0.0 {
+                if let Some(c) = filled[band_of(x, y)] {
+                    *values.get_mut(x, y) = c;
+                    *weight.get_mut(x, y) = 1e-3;
+                }
+            }
+        }
+    }
+}
+
+/// Steps of the ray march of [`march`] (geometric in distance).
+const MARCH_STEPS: usize = 192;
+
+/// The photo pixel seen from `point` in direction `dir` (unit), by a ray march through the depth
+/// map: the first sample where the ray passes from in front of the visible surface to behind it
+/// by less than a thickness is a hit, and its pixel is what the point sees. A ray that passes
+/// behind a surface by more than the thickness goes on (what lies behind an object is unknown
+/// until the ray comes out in front again). A ray that stays in front of every surface until
+/// `reach` over pixels without depth sees those (sky, far lamps: infinitely far). `None` when the
+/// ray leaves the image, or ends over a surface it never met: the photo did not see that
+/// direction from `point`. Without depth every pixel is infinitely far.
+fn march(
+    depth: Option<&Raster<f32>>,
+    camera: &Camera,
+    point: Vec3,
+    dir: Vec3,
+    reach: f32,
+) -> Option<(usize, usize)> {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let surface = |px: usize, py: usize| {
+        depth
+            .map(|d| *d.get(px, py))
+            .filter(|z| z.is_finite() && *z > 0.0)
+            .unwrap_or(f32::INFINITY)
+    };
+    let pixel_of = |q: Vec3| -> Option<(usize, usize)> {
+        let (uv, _) = camera.project(q)?;
+        (uv.x >= 0.0 && uv.y >= 0.0 && uv.x < w as f32 && uv.y < h as f32)
+            .then(|| ((uv.x as usize).min(w - 1), (uv.y as usize).min(h - 1)))
+    };
+    let t0 = 1e-3f32;
+    let ratio = (reach / t0)
+        .max(1.0 + 1e-6)
+        .powf(1.0 / (MARCH_STEPS - 1) as f32);
+    let mut t = t0;
+    let mut was_inside = false;
+    // Whether the previous sample was in front of the visible surface.
+    let mut in_front = false;
+    let mut last_z = -point.z;
+    let mut last = None;
+    for _ in 0..MARCH_STEPS {
+        let q = point + dir * t;
+        t *= ratio;
+        let z = -q.z;
+        let Some((px, py)) = pixel_of(q) else {
+            if was_inside {
+                return None;
+            }
+            last_z = z;
+            continue;
+        };
+        was_inside = true;
+        last = Some((px, py));
+        let zs = surface(px, py);
+        if z >= zs {
+            let thickness = (0.1 * zs).max(0.05).max(1.5 * (z - last_z).abs());
+            if in_front && z - zs <= thickness {
+                return Some((px, py));
+            }
+            in_front = false;
+        } else {
+            in_front = true;
+        }
+        last_z = z;
+    }
+    // Still in front at the end of the reach: what lies there is infinitely far, if anything.
+    last.filter(|&(px, py)| in_front && surface(px, py).is_infinite())
 }
 
 impl Environment {
@@ -385,7 +513,30 @@ impl Environment {
         lights: &[Light],
         options: &EnvironmentOptions,
     ) -> Result<Environment> {
+        Environment::from_photo_with_up(photo, depth, camera, point, Vec3::Y, lights, options)
+    }
+
+    /// [`Environment::from_photo`] with gravity `up` in the camera frame (the support surfaces'
+    /// normal), by which the directions the photo did not show are filled.
+    ///
+    /// # Errors
+    /// As [`Environment::from_photo`], and `InvalidArgument` for a zero or non-finite `up`.
+    pub fn from_photo_with_up(
+        photo: &Raster<[f32; 3]>,
+        depth: Option<&Raster<f32>>,
+        camera: &Camera,
+        point: Vec3,
+        up: Vec3,
+        lights: &[Light],
+        options: &EnvironmentOptions,
+    ) -> Result<Environment> {
         options.validate()?;
+        if !(up.is_finite() && up.length() > 1e-6) {
+            return Err(Error::invalid(format!(
+                "environment up must be a finite non-zero vector, got {up}"
+            )));
+        }
+        let up = up.normalize();
         camera.validate()?;
         let (w, h) = check_size("photo", photo)?;
         if (w, h) != (camera.width as usize, camera.height as usize) {
@@ -411,50 +562,41 @@ impl Environment {
             .all(|c| c.iter().all(|v| !v.is_finite() || *v <= 1.0 + 1e-3));
         let n = options.face_size as usize;
         let (ew, eh) = (4 * n, 2 * n);
-        let mut values = Raster::filled(ew, eh, [0.0f32; 3]);
-        let mut nearest = Raster::filled(ew, eh, f32::INFINITY);
-        let mut weight = Raster::filled(ew, eh, 0.0f32);
-        for y in 0..h {
-            for x in 0..w {
-                let (u, v) = (x as f32 + 0.5, y as f32 + 0.5);
-                let z = depth.map_or(f32::NAN, |d| *d.get(x, y));
-                let (dir, dist) = match camera.unproject(u, v, z) {
-                    Some(q) => {
-                        let d = q - point;
-                        (d.normalize_or_zero(), d.length())
+        let far = depth
+            .and_then(crate::camera::valid_depth_range)
+            .map_or(1.0, |(_, far)| far);
+        // Long enough to reach every surface of the depth map from the point.
+        let reach = 2.0 * (far + point.length()) + 1.0;
+        // One ray march per cell, rows in parallel.
+        let cells: Vec<Option<[f32; 3]>> = (0..ew * eh)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % ew, i / ew);
+                let dir =
+                    equirect_direction((x as f32 + 0.5) / ew as f32, (y as f32 + 0.5) / eh as f32);
+                march(depth, camera, point, dir, reach).map(|(px, py)| {
+                    let c = *photo.get(px, py);
+                    if ldr {
+                        inverse_tone_map(c, options.ldr_peak)
+                    } else {
+                        sanitize(c, HALF_MAX)
                     }
-                    None => (camera.ray_direction(u, v), f32::MAX),
-                };
-                if dir == Vec3::ZERO || !dir.is_finite() {
-                    continue;
-                }
-                let c = *photo.get(x, y);
-                let c = if ldr {
-                    inverse_tone_map(c, options.ldr_peak)
-                } else {
-                    sanitize(c, HALF_MAX)
-                };
-                let (eu, ev) = equirect_position(dir);
-                let (cx, cy) = (
-                    ((eu * ew as f32) as usize).min(ew - 1),
-                    ((ev * eh as f32) as usize).min(eh - 1),
-                );
-                if dist < *nearest.get(cx, cy) * 0.97 {
-                    // Clearly nearer: replaces what was behind.
-                    *nearest.get_mut(cx, cy) = dist;
-                    *values.get_mut(cx, cy) = c;
-                    *weight.get_mut(cx, cy) = 1.0;
-                } else if dist <= *nearest.get(cx, cy) * 1.03 {
-                    // The same surface: average.
-                    let wt = *weight.get(cx, cy);
-                    let acc = values.get_mut(cx, cy);
-                    for k in 0..3 {
-                        acc[k] = (acc[k] * wt + c[k]) / (wt + 1.0);
-                    }
-                    *weight.get_mut(cx, cy) = wt + 1.0;
-                }
-            }
-        }
+                })
+            })
+            .collect();
+        let mut weight = Raster::from_vec(
+            ew,
+            eh,
+            cells
+                .iter()
+                .map(|c| if c.is_some() { 1.0f32 } else { 0.0 })
+                .collect(),
+        );
+        let mut values = Raster::from_vec(
+            ew,
+            eh,
+            cells.into_iter().map(|c| c.unwrap_or([0.0; 3])).collect(),
+        );
         let mut seen = 0.0f64;
         let mut total = 0.0f64;
         for y in 0..eh {
@@ -467,7 +609,8 @@ impl Environment {
             }
         }
         if seen > 0.0 {
-            pull_push(&mut values, &mut weight);
+            pull_push(&mut values, &mut weight, HOLE_LEVELS);
+            fill_by_elevation(&mut values, &mut weight, up);
         }
         let mut level = equirect_to_cube(&values, n);
         for light in lights {
@@ -703,6 +846,145 @@ mod tests {
         .unwrap();
         let gain = lit.sh9.diffuse_radiance(Vec3::Y)[0] - up;
         assert!((gain - 1.0).abs() < 0.1, "{gain}");
+    }
+
+    /// A camera 1.25 m above a floor (radiance 0.7) looking along −Z at a table top 0.5 m below
+    /// it (radiance 0.2) spanning z ∈ [−3.5, −1.5] and the whole width; sky (no depth, 0.5)
+    /// above the horizon. Values below the LDR knee, so none is expanded.
+    fn table_scene() -> (Camera, Raster<f32>, Raster<[f32; 3]>) {
+        let camera = Camera::from_focal(60.0, 120, 90).unwrap();
+        let hit = |x: usize, y: usize| -> (f32, [f32; 3]) {
+            let d = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+            if d.y < 0.0 {
+                let t = -0.5 / d.y;
+                let z = d.z * t;
+                if (-3.5..=-1.5).contains(&z) {
+                    return (-z, [0.2; 3]);
+                }
+                return (-d.z * (-1.25 / d.y), [0.7; 3]);
+            }
+            (f32::NAN, [0.5; 3])
+        };
+        let depth = Raster::from_fn(120, 90, |x, y| hit(x, y).0);
+        let photo = Raster::from_fn(120, 90, |x, y| hit(x, y).1);
+        (camera, depth, photo)
+    }
+
+    #[test]
+    fn a_surface_just_below_the_point_hides_what_lies_beyond_it() {
+        // 2 cm above the table's centre, the whole lower hemisphere is table (0.2): the brighter
+        // floor the camera sees in front of the table is hidden from the point by the table, though
+        // the table covers only a few pixels in those directions.
+        let (camera, depth, photo) = table_scene();
+        let point = Vec3::new(0.0, -0.48, -2.5);
+        let env = Environment::from_photo(
+            &photo,
+            Some(&depth),
+            &camera,
+            point,
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        let down = env.sh9.diffuse_radiance(-Vec3::Y)[0];
+        assert!((down - 0.2).abs() < 0.03, "facing down: {down}");
+        // Every texel looking more than 20° below the horizon is table.
+        let level = &env.cube.levels[0];
+        let n = level.size as usize;
+        for (idx, t) in level.texels.iter().enumerate() {
+            let (f, j, i) = (idx / (n * n), (idx / n) % n, idx % n);
+            let d = cube_direction(f, (i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+            if d.y < -0.35 {
+                assert!((t[0] - 0.2).abs() < 1e-4, "{d}: {t:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_ray_passing_behind_an_object_goes_on_to_what_is_behind() {
+        // A pillar (0.6, 20 cm wide, 2 m away) in front of a wall (0.3, 5 m away); from a point
+        // between them, a ray that crosses behind the pillar (1.75 m behind its front) meets the
+        // wall, and one towards the pillar's front from the camera's side sees the pillar.
+        let camera = Camera::from_focal(60.0, 120, 90).unwrap();
+        let pillar = |x: usize| ((x as f32 + 0.5 - camera.cx) * 2.0 / camera.fx).abs() < 0.1;
+        let depth = Raster::from_fn(120, 90, |x, _| if pillar(x) { 2.0 } else { 5.0 });
+        let photo = Raster::from_fn(
+            120,
+            90,
+            |x, _| if pillar(x) { [0.6f32; 3] } else { [0.3; 3] },
+        );
+        let point = Vec3::new(0.3, 0.0, -3.0);
+        let env = Environment::from_photo(
+            &photo,
+            Some(&depth),
+            &camera,
+            point,
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        let level = &env.cube.levels[0];
+        let behind =
+            super::super::prefilter::sample_cube(level, Vec3::new(-0.8, 0.0, -2.0).normalize());
+        assert!((behind[0] - 0.3).abs() < 1e-4, "{behind:?}");
+        // From a point in front of the pillar, towards it.
+        let front = Environment::from_photo(
+            &photo,
+            Some(&depth),
+            &camera,
+            Vec3::new(0.3, 0.0, -1.0),
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        let towards = super::super::prefilter::sample_cube(
+            &front.cube.levels[0],
+            Vec3::new(-0.3, 0.0, -1.0).normalize(),
+        );
+        assert!((towards[0] - 0.6).abs() < 1e-4, "{towards:?}");
+    }
+
+    #[test]
+    fn unseen_directions_take_what_was_seen_at_their_elevation() {
+        // Behind the camera, below the horizon, the floor goes on (0.7 in front of the table, seen
+        // from a point above it); above the horizon the sky (0.5).
+        let (camera, depth, photo) = table_scene();
+        let point = Vec3::new(0.0, -0.3, -1.0);
+        let env = Environment::from_photo_with_up(
+            &photo,
+            Some(&depth),
+            &camera,
+            point,
+            Vec3::Y,
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        let level = &env.cube.levels[0];
+        let at = |d: Vec3| {
+            let (f, s, t) = cube_texel(d);
+            let n = level.size as usize;
+            level.texels[f * n * n
+                + ((t * n as f32) as usize).min(n - 1) * n
+                + ((s * n as f32) as usize).min(n - 1)][0]
+        };
+        let behind_below = at(Vec3::new(0.0, -0.8, 1.0).normalize());
+        let behind_above = at(Vec3::new(0.3, 0.5, 1.0).normalize());
+        assert!((behind_below - 0.7).abs() < 0.05, "{behind_below}");
+        assert!((behind_above - 0.5).abs() < 0.05, "{behind_above}");
+        // A tilted `up` is checked.
+        assert!(Environment::from_photo_with_up(
+            &photo,
+            Some(&depth),
+            &camera,
+            point,
+            Vec3::ZERO,
+            &[],
+            &Default::default(),
+        )
+        .unwrap_err()
+        .to_string()
+        .contains("up"));
     }
 
     #[test]

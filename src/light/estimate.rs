@@ -4,9 +4,9 @@
 use glam::Vec3;
 
 use super::environment::{Environment, EnvironmentOptions};
-use super::filters::{check_same, check_size};
+use super::filters::{check_same, check_size, luminance};
 use super::fit::{fit_lights, FitInputs, FitOptions, LightFit};
-use super::model::Light;
+use super::model::{Light, LightKind};
 use super::normals::normals_from_depth;
 use super::shadow_mask::{continuity_regions, shadow_mask, ShadowOptions, NO_REGION};
 use super::sources::{detect_sources, SourceOptions};
@@ -82,6 +82,67 @@ fn default_insertion_point(
         *v.select_nth_unstable_by(mid, f32::total_cmp).1
     };
     Vec3::new(med(|p| p.x), med(|p| p.y), med(|p| p.z)) + up * 0.02
+}
+
+/// Puts the fitted lights on the photo's scale. The fit finds each light's strength against the
+/// ambient term from the shading contrast, which does not depend on the albedo, but the overall
+/// scale only from an assumed median albedo, and the colour by grey world, which paints the
+/// light the colour of a wooden room. The photo itself measures the ambient: the surfaces around
+/// the insertion point, re-projected (without lights and without LDR expansion), are the light
+/// that reaches a support surface besides the lights. So the ambient becomes the diffuse
+/// radiance of that environment facing `up`, every fitted intensity is scaled by the same factor
+/// (in luminance), and lights out of view, whose colour nothing measures, are made neutral (the
+/// photo is taken as white-balanced). Sources the fallback kept with their detected intensities
+/// stay as they are.
+#[allow(clippy::too_many_arguments)]
+fn calibrate_to_environment(
+    mut fit: LightFit,
+    photo: &Raster<[f32; 3]>,
+    depth: &Raster<f32>,
+    camera: &Camera,
+    point: Vec3,
+    up: Vec3,
+    options: &EnvironmentOptions,
+) -> Result<LightFit> {
+    let fit_ambient = luminance(fit.ambient);
+    if !(fit_ambient.is_finite() && fit_ambient > 1e-9) {
+        return Ok(fit);
+    }
+    let ambient_env = Environment::from_photo_with_up(
+        photo,
+        Some(depth),
+        camera,
+        point,
+        up,
+        &[],
+        &EnvironmentOptions {
+            ldr_peak: 1.0,
+            ..*options
+        },
+    )?;
+    let measured = ambient_env.sh9.diffuse_radiance(up);
+    let lum_scale = luminance(measured) / fit_ambient;
+    if !(lum_scale.is_finite() && lum_scale > 0.0) {
+        return Ok(fit);
+    }
+    let scaled = |l: &Light| Light {
+        intensity: if l.kind == LightKind::Directional {
+            // Out of view: no colour of its own is measured; white balance makes it neutral.
+            [luminance(l.intensity) * lum_scale; 3]
+        } else {
+            l.intensity.map(|v| v * lum_scale)
+        },
+        ..*l
+    };
+    let main = fit.main;
+    for l in fit.lights.iter_mut() {
+        if !fit.fallback_used || *l == main {
+            *l = scaled(l);
+        }
+    }
+    fit.main = scaled(&main);
+    fit.ambient = measured;
+    Ok(fit)
 }
 
 /// Runs every illumination stage on a linear RGB photo with depth (metres along the optical axis,
@@ -167,11 +228,14 @@ pub fn estimate_lighting(
             ..options.fit
         },
     )?;
-    let environment = Environment::from_photo(
+    let fit =
+        calibrate_to_environment(fit, photo, depth, camera, point, up_v, &options.environment)?;
+    let environment = Environment::from_photo_with_up(
         photo,
         Some(depth),
         camera,
         point,
+        up_v,
         &fit.lights,
         &options.environment,
     )?;
@@ -184,4 +248,91 @@ pub fn estimate_lighting(
         environment,
         insertion_point: point.to_array(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fit(lights: Vec<Light>, ambient: [f32; 3], fallback_used: bool) -> LightFit {
+        LightFit {
+            main: lights[lights.len() - 1],
+            ambient,
+            lights,
+            fallback_used,
+            residual: 0.2,
+            shadow_disagreement: 0.0,
+            samples: 1000,
+        }
+    }
+
+    #[test]
+    fn the_fit_is_put_on_the_scale_of_the_measured_ambient() {
+        // Nothing but sky of radiance (0.4, 0.3, 0.2) in view: the ambient a surface facing up
+        // gets is that radiance, whatever albedo the fit assumed.
+        let camera = Camera::from_focal(40.0, 64, 48).unwrap();
+        let photo = Raster::filled(64, 48, [0.4f32, 0.3, 0.2]);
+        let depth = Raster::filled(64, 48, f32::NAN);
+        let sun = Light::directional([0.3, -1.0, 0.0], 4.0, [2.0, 1.0, 0.5]);
+        let lamp = Light {
+            kind: LightKind::Area,
+            position: [0.5, 1.0, -2.0],
+            direction: [0.0, -1.0, 0.0],
+            size: 0.2,
+            intensity: [0.3, 0.2, 0.1],
+            confidence: 0.8,
+        };
+        let ambient = [0.1f32, 0.05, 0.02];
+        let out = calibrate_to_environment(
+            fit(vec![lamp, sun], ambient, false),
+            &photo,
+            &depth,
+            &camera,
+            Vec3::new(0.0, 0.0, -2.0),
+            Vec3::Y,
+            &EnvironmentOptions::default(),
+        )
+        .unwrap();
+        for (a, b) in out.ambient.iter().zip([0.4, 0.3, 0.2]) {
+            assert!((a - b).abs() < 0.02, "{:?}", out.ambient);
+        }
+        let scale = luminance(out.ambient) / luminance(ambient);
+        // The out-of-view light keeps its strength against the ambient and becomes neutral.
+        let s = out.lights[1].intensity;
+        assert!(s[0] == s[1] && s[1] == s[2], "{s:?}");
+        assert!((s[0] - luminance(sun.intensity) * scale).abs() < 1e-3 * s[0]);
+        assert_eq!(out.main, out.lights[1]);
+        // The in-view light keeps its colour.
+        for k in 0..3 {
+            let want = lamp.intensity[k] * scale;
+            assert!((out.lights[0].intensity[k] - want).abs() < 1e-4 * want.max(1.0));
+        }
+        // A fallback keeps the sources it did not fit as they were.
+        let out = calibrate_to_environment(
+            fit(vec![lamp, sun], ambient, true),
+            &photo,
+            &depth,
+            &camera,
+            Vec3::new(0.0, 0.0, -2.0),
+            Vec3::Y,
+            &EnvironmentOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(out.lights[0], lamp);
+        assert!(out.lights[1].intensity[0] > sun.intensity[0]);
+        // A black photo measures nothing and changes nothing.
+        let black = Raster::filled(64, 48, [0.0f32; 3]);
+        let before = fit(vec![lamp, sun], ambient, false);
+        let out = calibrate_to_environment(
+            before.clone(),
+            &black,
+            &depth,
+            &camera,
+            Vec3::new(0.0, 0.0, -2.0),
+            Vec3::Y,
+            &EnvironmentOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(out, before);
+    }
 }
