@@ -101,7 +101,7 @@ enum plx_stereo_preset
   // pair's residual vertical misalignment; consistency checks, fill and edge-aware smoothing
   // (default).
   PLX_STEREO_PRESET_BALANCED = 1,
-  // As balanced, but the full range searched at full size and a wider sub-pixel fit.
+  // As balanced, but the full range searched at full size.
   PLX_STEREO_PRESET_QUALITY = 2,
 };
 #ifndef __cplusplus

@@ -18,7 +18,7 @@ pub enum plx_stereo_preset {
     /// pair's residual vertical misalignment; consistency checks, fill and edge-aware smoothing
     /// (default).
     Balanced = 1,
-    /// As balanced, but the full range searched at full size and a wider sub-pixel fit.
+    /// As balanced, but the full range searched at full size.
     Quality = 2,
 }
 

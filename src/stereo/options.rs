@@ -50,11 +50,11 @@ pub enum Preset {
     Fast,
     /// Census 9×7, 8-path SGM; a half-size pass narrows each pixel's search to 32 disparities
     /// and measures the pair's residual vertical misalignment, undone before the full-size
-    /// match; equiangular sub-pixel, 3×3 local fit, L/R check, uniqueness 5 %, speckles
+    /// match; equiangular sub-pixel, 5×5 local fit, L/R check, uniqueness 5 %, speckles
     /// < 100 px, background fill, 3 passes of edge-aware smoothing. The default.
     Balanced,
-    /// The thorough set: the full range searched at full size (the half-size pass only measures
-    /// the misalignment) and a 5×5 local fit; otherwise as `Balanced`.
+    /// As `Balanced` but searching the full range at full size (the half-size pass only measures
+    /// the misalignment).
     Quality,
 }
 
@@ -168,7 +168,7 @@ impl StereoOptions {
             p2_gradient_scale: 16.0,
             dp_penalty: 4.0,
             subpixel: Subpixel::Equiangular,
-            local_refinement_radius: 1,
+            local_refinement_radius: 2,
             lr_max_diff: Some(1),
             uniqueness: 5,
             speckle_size: 100,
@@ -192,7 +192,6 @@ impl StereoOptions {
             },
             Preset::Quality => StereoOptions {
                 coarse_levels: 0,
-                local_refinement_radius: 2,
                 ..balanced
             },
         }
