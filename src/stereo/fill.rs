@@ -146,29 +146,37 @@ fn scan_direction(
 /// thresholds `low`, `high` in grey levels per pixel). `true` = edge.
 pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
     let (w, h) = (image.width(), image.height());
-    let at = |x: isize, y: isize| {
-        *image.get(
-            x.clamp(0, w as isize - 1) as usize,
-            y.clamp(0, h as isize - 1) as usize,
-        ) as f32
-    };
     let mut mag = vec![0f32; w * h];
     let mut dir = vec![0u8; w * h];
     mag.par_chunks_mut(w)
         .zip(dir.par_chunks_mut(w))
         .enumerate()
         .for_each(|(y, (mag, dir))| {
-            let y = y as isize;
-            for x in 0..w as isize {
-                let gx = (at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1))
-                    - (at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1));
-                let gy = (at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1))
-                    - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
-                let p = x as usize;
-                mag[p] = (gx * gx + gy * gy).sqrt() / 4.0;
+            // The three rows as f32 with one replicated pixel on each side (borders replicate),
+            // so the Sobel loop below is plain indexing and vectorises.
+            let padded = |yy: usize| {
+                let row = image.row(yy);
+                let mut out = Vec::with_capacity(w + 2);
+                out.push(row[0] as f32);
+                out.extend(row.iter().map(|&v| v as f32));
+                out.push(row[w - 1] as f32);
+                out
+            };
+            let (up, mid, down) = (
+                padded(y.saturating_sub(1)),
+                padded(y),
+                padded((y + 1).min(h - 1)),
+            );
+            for x in 0..w {
+                // Column x of the image is index x + 1 of a padded row.
+                let gx =
+                    (up[x + 2] + 2.0 * mid[x + 2] + down[x + 2]) - (up[x] + 2.0 * mid[x] + down[x]);
+                let gy = (down[x] + 2.0 * down[x + 1] + down[x + 2])
+                    - (up[x] + 2.0 * up[x + 1] + up[x + 2]);
+                mag[x] = (gx * gx + gy * gy).sqrt() / 4.0;
                 // Quantise the gradient direction to 0°, 45°, 90°, 135° (tan 22.5° ≈ 0.4142).
                 let (ax, ay) = (gx.abs(), gy.abs());
-                dir[p] = if ay <= 0.4142 * ax {
+                dir[x] = if ay <= 0.4142 * ax {
                     0
                 } else if ax <= 0.4142 * ay {
                     2
