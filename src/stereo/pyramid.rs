@@ -48,21 +48,22 @@ pub fn window_bases(
 ) -> Vec<u16> {
     let (cw, ch) = (coarse.width(), coarse.height());
     let top = (max_disparity + 1).saturating_sub(k);
-    let mut bases = vec![0u16; width * height];
-    bases
-        .par_chunks_mut(width)
+    // Each coarse pixel's window start, once (four full-size pixels share it).
+    let mut coarse_bases = vec![0u16; cw * ch];
+    coarse_bases
+        .par_chunks_mut(cw)
         .enumerate()
-        .for_each(|(y, row)| {
-            let cy = (y / 2).min(ch - 1);
-            for (x, b) in row.iter_mut().enumerate() {
-                let cx = (x / 2).min(cw - 1);
-                let own = 2.0 * coarse.get(cx, cy);
+        .for_each(|(cy, row)| {
+            let rows: Vec<&[f32]> = (cy.saturating_sub(1)..=(cy + 1).min(ch - 1))
+                .map(|qy| coarse.row(qy))
+                .collect();
+            for (cx, b) in row.iter_mut().enumerate() {
+                let own = 2.0 * coarse.row(cy)[cx];
                 let (mut lo, mut hi) = (own, own);
-                for qy in cy.saturating_sub(1)..=(cy + 1).min(ch - 1) {
-                    for qx in cx.saturating_sub(1)..=(cx + 1).min(cw - 1) {
-                        let v = 2.0 * coarse.get(qx, qy);
-                        lo = lo.min(v);
-                        hi = hi.max(v);
+                for r in &rows {
+                    for &v in &r[cx.saturating_sub(1)..=(cx + 1).min(cw - 1)] {
+                        lo = lo.min(2.0 * v);
+                        hi = hi.max(2.0 * v);
                     }
                 }
                 let centre = if hi - lo + 4.0 <= k as f32 {
@@ -76,6 +77,16 @@ pub fn window_bases(
                 } else {
                     0
                 };
+            }
+        });
+    let mut bases = vec![0u16; width * height];
+    bases
+        .par_chunks_mut(width)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let src = &coarse_bases[(y / 2).min(ch - 1) * cw..][..cw];
+            for (x, b) in row.iter_mut().enumerate() {
+                *b = src[(x / 2).min(cw - 1)];
             }
         });
     bases
