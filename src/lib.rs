@@ -34,6 +34,7 @@ pub mod mesh;
 pub mod reference;
 #[cfg(feature = "gpu")]
 pub mod render;
+mod robust;
 pub mod scene;
 pub mod stereo;
 pub mod trace;

@@ -26,6 +26,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::image::Raster;
+use crate::robust::{tukey, MAD_TO_SIGMA, TUKEY_C};
 
 /// Radii of the growing neighbourhood, pixels.
 const RADII: [i64; 5] = [2, 4, 8, 16, 32];
@@ -36,8 +37,6 @@ const SUBSAMPLE_DIVISOR: i64 = 8;
 const FIRST_RADIUS_ROUNDS: usize = 2;
 /// Growth stops once the normal's standard error is below this, degrees.
 pub(crate) const TARGET_NORMAL_ERROR_DEG: f64 = 1.0;
-/// Tukey's biweight cut-off in units of `σ_w` (95 % efficiency under Gaussian noise).
-const TUKEY_C: f64 = 4.685;
 /// Sum of weights below which a fit is not trusted (the previous radius' fit stands).
 const MIN_WEIGHT: f64 = 8.0;
 /// Smallest noise assumed, relative to the median inverse depth: exact (rendered or synthetic)
@@ -97,7 +96,7 @@ pub(crate) fn inverse_depth_noise(w: &Raster<f64>, spacing: usize) -> Option<f64
         let k = v.len() / 2;
         *v.select_nth_unstable_by(k, f64::total_cmp).1
     };
-    let sigma = 1.4826 * median(&mut d2) / 6f64.sqrt();
+    let sigma = MAD_TO_SIGMA * median(&mut d2) / 6f64.sqrt();
     let floor = MIN_RELATIVE_NOISE * median(&mut values);
     let sigma = sigma.max(floor);
     (sigma.is_finite() && sigma > 0.0).then_some(sigma)
@@ -150,16 +149,6 @@ fn plane_from_normal(n: DVec3, w0: f64, camera: &Camera, u0: f64, v0: f64) -> Op
         g: w0,
     };
     (plane.a.is_finite() && plane.b.is_finite()).then_some(plane)
-}
-
-fn tukey(r: f64, c: f64) -> f64 {
-    let t = r / c;
-    if t.abs() >= 1.0 {
-        0.0
-    } else {
-        let s = 1.0 - t * t;
-        s * s
-    }
 }
 
 /// The robust local fitter over one inverse-depth map.

@@ -13,6 +13,7 @@ use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
 use crate::image::Raster;
+use crate::robust::{tukey, MAD_TO_SIGMA, TUKEY_C};
 
 /// The vertical position of the right view's content relative to the left's, an affine function
 /// of the pixel: `v(x, y) = offset + per_column · (x − w/2) + per_row · (y − h/2)` pixels
@@ -263,15 +264,14 @@ fn robust_plane(samples: &[Shift], cx: f32, cy: f32) -> Option<VerticalResidual>
     for _ in 0..8 {
         let mut res: Vec<f32> = samples.iter().map(|s| residual(&fit, s).abs()).collect();
         res.sort_by(f32::total_cmp);
-        // 4.685 σ with σ = 1.4826 · MAD: Tukey's usual cut-off; at least 0.1 px.
-        let cut = (4.685 * 1.4826 * res[res.len() / 2]).max(0.1);
+        // Tukey's usual cut-off with σ from the MAD; at least 0.1 px.
+        let cut = (TUKEY_C * MAD_TO_SIGMA * res[res.len() / 2] as f64).max(0.1);
         let (mut normal, mut rhs) = (DMat3::ZERO, DVec3::ZERO);
         for s in samples {
-            let q = (residual(&fit, s) / cut).abs();
-            if q >= 1.0 {
+            let wgt = tukey(residual(&fit, s) as f64, cut);
+            if wgt == 0.0 {
                 continue;
             }
-            let wgt = ((1.0 - q * q) * (1.0 - q * q)) as f64;
             let j = DVec3::new(1.0, (s.x - cx) as f64, (s.y - cy) as f64);
             normal += DMat3::from_cols(j * j.x, j * j.y, j * j.z) * wgt;
             rhs += j * (wgt * s.v as f64);

@@ -161,18 +161,15 @@ pub(crate) fn match_grey(
     let n = w * h;
     let levels = o.max_disparity as usize + 1;
 
-    // Coarse-to-fine: only when the window is narrower than the range and the half-size pair is
-    // still wide enough to hold its half range.
+    // A half-size match (SGM only) needs the half-size pair wide enough to hold its half range.
+    // Coarse-to-fine uses it when the window is narrower than the range; the alignment step
+    // measures the misalignment from it.
     let coarse_max = o.max_disparity.div_ceil(2).max(1);
-    let use_coarse = o.coarse_levels > 0
-        && o.aggregation != Aggregation::ScanlineDp
-        && (o.coarse_window as usize) < levels
+    let half_size_match = o.aggregation != Aggregation::ScanlineDp
         && (w.div_ceil(2) as u32) > coarse_max + 1
         && h >= 4;
-    let wants_alignment = o.refine_alignment
-        && o.aggregation != Aggregation::ScanlineDp
-        && (w.div_ceil(2) as u32) > coarse_max + 1
-        && h >= 4;
+    let use_coarse = half_size_match && o.coarse_levels > 0 && (o.coarse_window as usize) < levels;
+    let wants_alignment = half_size_match && o.refine_alignment;
     let (bases, k, r) = if use_coarse || wants_alignment {
         let start = Instant::now();
         let (cl, cr) = (pyramid::reduce(l), pyramid::reduce(r));
