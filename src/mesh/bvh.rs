@@ -62,8 +62,8 @@ pub struct Hit {
     pub point: Vec3,
     /// Unit normal of the triangle hit, facing the ray's origin.
     pub geometric_normal: Vec3,
-    /// Unit smooth normal interpolated from the mesh's vertex normals (facing the same side as
-    /// `geometric_normal`); equal to it when the mesh has no normals.
+    /// Unit smooth normal interpolated from the mesh's vertex normals, facing the ray's origin;
+    /// equal to `geometric_normal` when the mesh has no normals.
     pub normal: Vec3,
     /// Index of the triangle hit (into `SceneMesh::indices / 3`).
     pub triangle: u32,
@@ -182,7 +182,11 @@ impl Bvh {
             Some(n) => {
                 let smooth = n[0] * (1.0 - bary.x - bary.y) + n[1] * bary.x + n[2] * bary.y;
                 let smooth = smooth.normalize_or(geometric);
-                if smooth.dot(geometric) < 0.0 {
+                // Faced towards the ray's origin, not towards the triangle's side: on a stereo
+                // mesh the triangle normal at pixel spacing is dominated by depth noise (it can
+                // sit more than 90° from the fitted vertex normals on a floor seen at a grazing
+                // angle), and following it would turn correct smooth normals upside down.
+                if smooth.dot(ray.direction) > 0.0 {
                     -smooth
                 } else {
                     smooth
@@ -332,6 +336,37 @@ mod tests {
                 &misses[..misses.len().min(5)]
             );
         }
+    }
+
+    #[test]
+    fn smooth_normal_faces_the_ray_even_against_a_noisy_triangle() {
+        // A triangle seen almost edge-on whose facet leans one way while its (fitted) vertex
+        // normals lean the other — both towards the camera at the origin, more than 90° apart:
+        // what a stereo floor's pixel-sized triangles do under depth noise.
+        let facet = Vec3::new(0.0, -1.0, 0.1).normalize();
+        let fitted = Vec3::new(0.0, 1.0, 0.1).normalize();
+        assert!(facet.dot(fitted) < 0.0);
+        // Two edges perpendicular to `facet`, around the point (0, 0, −2).
+        let e1 = Vec3::X;
+        let e2 = facet.cross(e1).normalize();
+        let c = Vec3::new(0.0, 0.0, -2.0);
+        let corners = [c - 0.5 * e1 - 0.5 * e2, c + 0.5 * e1 - 0.5 * e2, c + e2];
+        let mesh = SceneMesh {
+            positions: corners.map(|p| p.to_array()).to_vec(),
+            normals: vec![fitted.to_array(); 3],
+            uvs: vec![[0.0; 2]; 3],
+            indices: vec![0, 1, 2],
+            ..SceneMesh::default()
+        };
+        let hit = Bvh::new(&mesh)
+            .closest_hit(&Ray::new(Vec3::ZERO, -Vec3::Z))
+            .unwrap();
+        assert!(hit.geometric_normal.angle_between(facet).to_degrees() < 0.01);
+        assert!(
+            hit.normal.angle_between(fitted).to_degrees() < 0.01,
+            "smooth normal {} (fitted {fitted})",
+            hit.normal
+        );
     }
 
     #[test]

@@ -409,6 +409,38 @@ mod tests {
     }
 
     #[test]
+    fn normals_of_a_floor_under_correlated_stereo_noise_are_within_a_few_degrees() {
+        // As above, but the disparity errors are correlated over 9 px (as a matcher's are after
+        // aggregation and smoothing): short differences underrate them, and a fit that trusts
+        // them stops growing early and tilts with each bump.
+        let c = camera(240, 180);
+        let n = glam::Mat3::from_rotation_x(20f32.to_radians()) * Vec3::Y;
+        let f_b = 400.0 * 0.1;
+        let noise = crate::mesh::local_fit::tests::correlated_noise_field(240, 180, 4, 0.3, 5);
+        let depth = Raster::from_fn(240, 180, |x, y| {
+            let z = plane_depth(&c, n, -1.5, x, y);
+            if !(z > 0.0 && z < 12.0) {
+                return f32::NAN;
+            }
+            let d = f_b / z + *noise.get(x, y);
+            if d > 0.0 {
+                f_b / d
+            } else {
+                f32::NAN
+            }
+        });
+        let m = SceneMesh::from_depth(&depth, &c, &MeshOptions::default()).unwrap();
+        check_invariants(&m);
+        let (median, p90) = median_p90(
+            m.normals
+                .iter()
+                .map(|v| Vec3::from(*v).angle_between(n).to_degrees())
+                .collect(),
+        );
+        assert!(median < 4.0 && p90 < 12.0, "median {median}°, p90 {p90}°");
+    }
+
+    #[test]
     fn normals_stay_sharp_at_a_crease_and_a_discontinuity() {
         // A box's top (horizontal, y = −0.5 m, from z = −2 to −3) and front (z = −2, facing the
         // camera) meeting in an edge, in front of a wall at z = −4: exact depth keeps exact
