@@ -6,8 +6,9 @@ use glam::{Mat3, Vec2, Vec3};
 use parallax::camera::Camera;
 use parallax::image::Raster;
 use parallax::mesh::{
-    detect_surfaces, pick, place, place_on_ray, Bvh, MeshOptions, PlaceOptions, Ray, SceneMesh,
-    SurfaceKind, SurfaceOptions, Surfaces, UpSource, PLACE_SEARCH_RADIUS_PX,
+    detect_surfaces, detect_surfaces_with_confidence, pick, place, place_on_ray, Bvh, MeshOptions,
+    PlaceOptions, Ray, SceneMesh, SurfaceKind, SurfaceOptions, Surfaces, UpSource,
+    PLACE_SEARCH_RADIUS_PX,
 };
 
 const FLOOR_Y: f32 = -1.4;
@@ -290,6 +291,75 @@ fn planes_normals_and_gravity_survive_stereo_depth_noise() {
         let err = s.normal.angle_between(room.up()).to_degrees();
         assert!(err < 3.0, "{name} plane normal error {err}°");
     }
+}
+
+/// The room's floor as a matcher that filled its near part by interpolation might give it: below
+/// image row `from_row`, floor depth bent away smoothly (up to 4 % too near at the bottom), with
+/// confidence 0 there and 1 elsewhere.
+fn with_a_wrongly_filled_floor(room: &Room, from_row: usize) -> (Raster<f32>, Raster<f32>) {
+    let h = room.depth.height();
+    let filled = |x: usize, y: usize| y >= from_row && *room.labels.get(x, y) == Label::Floor;
+    let depth = Raster::from_fn(room.depth.width(), h, |x, y| {
+        let z = *room.depth.get(x, y);
+        if filled(x, y) {
+            z / (1.0 + 0.04 * (y - from_row) as f32 / (h - from_row) as f32)
+        } else {
+            z
+        }
+    });
+    let confidence = Raster::from_fn(
+        room.depth.width(),
+        h,
+        |x, y| {
+            if filled(x, y) {
+                0.0
+            } else {
+                1.0
+            }
+        },
+    );
+    (depth, confidence)
+}
+
+#[test]
+fn planes_are_fitted_on_measured_depth_not_on_filled_holes() {
+    let room = room(320, 240, 280.0);
+    let (depth, confidence) = with_a_wrongly_filled_floor(&room, 170);
+    let mesh = SceneMesh::from_depth(&depth, &room.camera, &MeshOptions::default()).unwrap();
+    let floor_error = |found: &Surfaces| {
+        let s = found
+            .surfaces
+            .iter()
+            .filter(|s| s.kind == SurfaceKind::Horizontal)
+            .max_by_key(|s| s.inliers)
+            .unwrap_or_else(|| panic!("no horizontal surface: {found:#?}"));
+        s.normal.angle_between(room.up()).to_degrees()
+    };
+    let options = SurfaceOptions::default();
+    let measured =
+        detect_surfaces_with_confidence(&mesh, &room.camera, Some(&confidence), &options).unwrap();
+    let all = detect_surfaces(&mesh, &room.camera, &options).unwrap();
+    let (with, without) = (floor_error(&measured), floor_error(&all));
+    assert!(with < 0.2, "floor from measured depth: {with}°");
+    assert!(
+        without > 2.0 * with + 0.2,
+        "the fill must matter here: {without}° vs {with}°"
+    );
+    // Filled points within the tolerance of the plane still belong to it (row 175 is bent by
+    // 0.3 %, inside the 1 % tolerance): the floor's extent covers them.
+    let floor = measured
+        .surfaces
+        .iter()
+        .filter(|s| s.kind == SurfaceKind::Horizontal)
+        .max_by_key(|s| s.inliers)
+        .unwrap();
+    let x = (0..room.depth.width())
+        .find(|&x| interior(&room, x, 175, 4) && *room.labels.get(x, 175) == Label::Floor)
+        .expect("floor on row 175");
+    assert!(floor.contains_pixel(Vec2::new(x as f32 + 0.5, 175.5)));
+    // A confidence map of another size is refused.
+    let small = Raster::filled(10, 10, 1.0f32);
+    assert!(detect_surfaces_with_confidence(&mesh, &room.camera, Some(&small), &options).is_err());
 }
 
 #[test]

@@ -16,8 +16,8 @@ use crate::error::{Error, Result};
 use crate::image::Raster;
 use crate::mesh::simplify::simplify;
 use crate::mesh::{
-    self, detect_surfaces, Bvh, Hit, MeshOptions, PlaceOptions, Placement, Ray, SceneMesh,
-    SurfaceOptions, Surfaces,
+    self, detect_surfaces_with_confidence, Bvh, Hit, MeshOptions, PlaceOptions, Placement, Ray,
+    SceneMesh, SurfaceOptions, Surfaces,
 };
 use crate::trace::{StageStatus, Trace};
 
@@ -391,9 +391,19 @@ impl Scene {
         let options = self.surface_options.value.unwrap_or_default();
         let empty = SceneMesh::default();
         let mesh = grid.as_deref().unwrap_or(&empty);
+        // The confidence that came with the depth (the host's, or the matcher's: 0 on the holes
+        // it filled), so that planes are fitted on measured depth. Both are versioned with the
+        // depth.
+        let (host_confidence, stereo) = match &self.host_depth.value {
+            Some(host) => (host.confidence.clone(), None),
+            None => (None, Some(self.disparity_traced(trace)?)),
+        };
+        let confidence = host_confidence
+            .as_deref()
+            .or(stereo.as_deref().map(|d| &d.confidence));
         self.surfaces
             .get_or_compute("surfaces", &versions, trace, |_| {
-                detect_surfaces(mesh, &camera, &options)
+                detect_surfaces_with_confidence(mesh, &camera, confidence, &options)
             })
     }
 
