@@ -377,6 +377,77 @@ fn fill_by_elevation(values: &mut Raster<[f32; 3]>, weight: &mut Raster<f32>, up
 /// Steps of the ray march of [`march`] (geometric in distance).
 const MARCH_STEPS: usize = 192;
 
+/// Where each direction around a point meets the photo: one ray march through the depth map per
+/// cell of the `4n × 2n` equirectangular grid of [`Environment::from_photo_with_up`] (`n` the
+/// cube's face size), kept so that environments around the same point share it.
+pub(crate) struct PhotoReprojection {
+    face_size: u32,
+    photo_size: (usize, usize),
+    point: Vec3,
+    /// Per cell (row-major), the photo pixel the direction meets; `None` where it meets nothing.
+    hits: Vec<Option<(u32, u32)>>,
+}
+
+impl PhotoReprojection {
+    /// Marches every direction from `point` (camera frame, metres) through `depth` (metres along
+    /// the optical axis, NaN/inf = unknown: taken as infinitely far).
+    ///
+    /// # Errors
+    /// `InvalidArgument` for an empty photo, a non-finite point or a `face_size` outside 4..=1024;
+    /// `SizeMismatch` when the depth or camera is not the photo's size.
+    pub(crate) fn new(
+        photo: &Raster<[f32; 3]>,
+        depth: Option<&Raster<f32>>,
+        camera: &Camera,
+        point: Vec3,
+        face_size: u32,
+    ) -> Result<PhotoReprojection> {
+        EnvironmentOptions {
+            face_size,
+            ..EnvironmentOptions::default()
+        }
+        .validate()?;
+        camera.validate()?;
+        let (w, h) = check_size("photo", photo)?;
+        if (w, h) != (camera.width as usize, camera.height as usize) {
+            return Err(Error::SizeMismatch(format!(
+                "photo is {w}x{h} but the camera's image is {}x{}",
+                camera.width, camera.height
+            )));
+        }
+        if let Some(d) = depth {
+            check_same("depth map", photo, d)?;
+        }
+        if !point.is_finite() {
+            return Err(Error::invalid(format!(
+                "environment point must be finite, got {point}"
+            )));
+        }
+        let n = face_size as usize;
+        let (ew, eh) = (4 * n, 2 * n);
+        let far = depth
+            .and_then(crate::camera::valid_depth_range)
+            .map_or(1.0, |(_, far)| far);
+        // Long enough to reach every surface of the depth map from the point.
+        let reach = 2.0 * (far + point.length()) + 1.0;
+        let hits = (0..ew * eh)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % ew, i / ew);
+                let dir =
+                    equirect_direction((x as f32 + 0.5) / ew as f32, (y as f32 + 0.5) / eh as f32);
+                march(depth, camera, point, dir, reach).map(|(px, py)| (px as u32, py as u32))
+            })
+            .collect();
+        Ok(PhotoReprojection {
+            face_size,
+            photo_size: (w, h),
+            point,
+            hits,
+        })
+    }
+}
+
 /// The photo pixel seen from `point` in direction `dir` (unit), by a ray march through the depth
 /// map: the first sample where the ray passes from in front of the visible surface to behind it
 /// by less than a thickness is a hit, and its pixel is what the point sees. A ray that passes
@@ -530,29 +601,46 @@ impl Environment {
         lights: &[Light],
         options: &EnvironmentOptions,
     ) -> Result<Environment> {
+        let reprojection = PhotoReprojection::new(photo, depth, camera, point, options.face_size)?;
+        Environment::from_reprojection(photo, &reprojection, up, lights, options)
+    }
+
+    /// [`Environment::from_photo_with_up`] from a ray march already done: several environments
+    /// around the same point (another LDR expansion, other lights) share one.
+    ///
+    /// # Errors
+    /// `InvalidArgument` for bad options (or a `face_size` other than the reprojection's), a zero
+    /// or non-finite `up` or an invalid light; `SizeMismatch` when the photo is not the one
+    /// marched over.
+    pub(crate) fn from_reprojection(
+        photo: &Raster<[f32; 3]>,
+        reprojection: &PhotoReprojection,
+        up: Vec3,
+        lights: &[Light],
+        options: &EnvironmentOptions,
+    ) -> Result<Environment> {
         options.validate()?;
+        if options.face_size != reprojection.face_size {
+            return Err(Error::invalid(format!(
+                "environment face_size {} differs from the reprojection's {}",
+                options.face_size, reprojection.face_size
+            )));
+        }
+        if (photo.width(), photo.height()) != reprojection.photo_size {
+            return Err(Error::SizeMismatch(format!(
+                "photo is {}x{} but the reprojection was marched over a {}x{} one",
+                photo.width(),
+                photo.height(),
+                reprojection.photo_size.0,
+                reprojection.photo_size.1
+            )));
+        }
         if !(up.is_finite() && up.length() > 1e-6) {
             return Err(Error::invalid(format!(
                 "environment up must be a finite non-zero vector, got {up}"
             )));
         }
         let up = up.normalize();
-        camera.validate()?;
-        let (w, h) = check_size("photo", photo)?;
-        if (w, h) != (camera.width as usize, camera.height as usize) {
-            return Err(Error::SizeMismatch(format!(
-                "photo is {w}x{h} but the camera's image is {}x{}",
-                camera.width, camera.height
-            )));
-        }
-        if let Some(d) = depth {
-            check_same("depth map", photo, d)?;
-        }
-        if !point.is_finite() {
-            return Err(Error::invalid(format!(
-                "environment point must be finite, got {point}"
-            )));
-        }
         for l in lights {
             l.validate()?;
         }
@@ -562,20 +650,12 @@ impl Environment {
             .all(|c| c.iter().all(|v| !v.is_finite() || *v <= 1.0 + 1e-3));
         let n = options.face_size as usize;
         let (ew, eh) = (4 * n, 2 * n);
-        let far = depth
-            .and_then(crate::camera::valid_depth_range)
-            .map_or(1.0, |(_, far)| far);
-        // Long enough to reach every surface of the depth map from the point.
-        let reach = 2.0 * (far + point.length()) + 1.0;
-        // One ray march per cell, rows in parallel.
-        let cells: Vec<Option<[f32; 3]>> = (0..ew * eh)
-            .into_par_iter()
-            .map(|i| {
-                let (x, y) = (i % ew, i / ew);
-                let dir =
-                    equirect_direction((x as f32 + 0.5) / ew as f32, (y as f32 + 0.5) / eh as f32);
-                march(depth, camera, point, dir, reach).map(|(px, py)| {
-                    let c = *photo.get(px, py);
+        let cells: Vec<Option<[f32; 3]>> = reprojection
+            .hits
+            .par_iter()
+            .map(|hit| {
+                hit.map(|(px, py)| {
+                    let c = *photo.get(px as usize, py as usize);
                     if ldr {
                         inverse_tone_map(c, options.ldr_peak)
                     } else {
@@ -614,7 +694,7 @@ impl Environment {
         }
         let mut level = equirect_to_cube(&values, n);
         for light in lights {
-            draw_light(&mut level, light, point);
+            draw_light(&mut level, light, reprojection.point);
         }
         let mut env = Environment::from_cube(&level, options)?;
         env.seen_fraction = (seen / total) as f32;
@@ -985,6 +1065,57 @@ mod tests {
         .unwrap_err()
         .to_string()
         .contains("up"));
+    }
+
+    #[test]
+    fn one_reprojection_serves_environments_of_other_expansions_and_lights() {
+        let (camera, depth, photo) = table_scene();
+        let point = Vec3::new(0.0, -0.3, -1.0);
+        let options = EnvironmentOptions::default();
+        let shared =
+            PhotoReprojection::new(&photo, Some(&depth), &camera, point, options.face_size)
+                .unwrap();
+        let lamp = Light {
+            kind: LightKind::Point,
+            position: [0.2, 0.5, -1.5],
+            direction: [0.0, -1.0, 0.0],
+            size: 0.1,
+            intensity: [3.0; 3],
+            confidence: 1.0,
+        };
+        for (lights, peak) in [(vec![], 1.0), (vec![lamp], options.ldr_peak)] {
+            let options = EnvironmentOptions {
+                ldr_peak: peak,
+                ..options
+            };
+            let direct = Environment::from_photo_with_up(
+                &photo,
+                Some(&depth),
+                &camera,
+                point,
+                Vec3::Y,
+                &lights,
+                &options,
+            )
+            .unwrap();
+            let from_shared =
+                Environment::from_reprojection(&photo, &shared, Vec3::Y, &lights, &options)
+                    .unwrap();
+            assert_eq!(direct, from_shared);
+        }
+        // The reprojection belongs to one face size and one photo size.
+        let other_size = EnvironmentOptions {
+            face_size: options.face_size / 2,
+            ..options
+        };
+        let err = Environment::from_reprojection(&photo, &shared, Vec3::Y, &[], &other_size)
+            .unwrap_err();
+        assert!(err.to_string().contains("face_size"), "{err}");
+        let small = Raster::filled(4, 4, [0.5f32; 3]);
+        assert!(matches!(
+            Environment::from_reprojection(&small, &shared, Vec3::Y, &[], &options),
+            Err(Error::SizeMismatch(_))
+        ));
     }
 
     #[test]

@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use super::environment::{Environment, EnvironmentOptions};
+use super::environment::{Environment, EnvironmentOptions, PhotoReprojection};
 use super::filters::{check_same, check_size, luminance};
 use super::fit::{fit_lights, FitInputs, FitOptions, LightFit};
 use super::model::{Light, LightKind};
@@ -98,9 +98,7 @@ fn default_insertion_point(
 fn calibrate_to_environment(
     mut fit: LightFit,
     photo: &Raster<[f32; 3]>,
-    depth: &Raster<f32>,
-    camera: &Camera,
-    point: Vec3,
+    reprojection: &PhotoReprojection,
     up: Vec3,
     options: &EnvironmentOptions,
 ) -> Result<LightFit> {
@@ -108,11 +106,9 @@ fn calibrate_to_environment(
     if !(fit_ambient.is_finite() && fit_ambient > 1e-9) {
         return Ok(fit);
     }
-    let ambient_env = Environment::from_photo_with_up(
+    let ambient_env = Environment::from_reprojection(
         photo,
-        Some(depth),
-        camera,
-        point,
+        reprojection,
         up,
         &[],
         &EnvironmentOptions {
@@ -228,13 +224,19 @@ pub fn estimate_lighting(
             ..options.fit
         },
     )?;
-    let fit =
-        calibrate_to_environment(fit, photo, depth, camera, point, up_v, &options.environment)?;
-    let environment = Environment::from_photo_with_up(
+    // One ray march from the insertion point serves both the ambient calibration and the
+    // environment handed out.
+    let reprojection = PhotoReprojection::new(
         photo,
         Some(depth),
         camera,
         point,
+        options.environment.face_size,
+    )?;
+    let fit = calibrate_to_environment(fit, photo, &reprojection, up_v, &options.environment)?;
+    let environment = Environment::from_reprojection(
+        photo,
+        &reprojection,
         up_v,
         &fit.lights,
         &options.environment,
@@ -286,9 +288,14 @@ mod tests {
         let out = calibrate_to_environment(
             fit(vec![lamp, sun], ambient, false),
             &photo,
-            &depth,
-            &camera,
-            Vec3::new(0.0, 0.0, -2.0),
+            &PhotoReprojection::new(
+                &photo,
+                Some(&depth),
+                &camera,
+                Vec3::new(0.0, 0.0, -2.0),
+                EnvironmentOptions::default().face_size,
+            )
+            .unwrap(),
             Vec3::Y,
             &EnvironmentOptions::default(),
         )
@@ -311,9 +318,14 @@ mod tests {
         let out = calibrate_to_environment(
             fit(vec![lamp, sun], ambient, true),
             &photo,
-            &depth,
-            &camera,
-            Vec3::new(0.0, 0.0, -2.0),
+            &PhotoReprojection::new(
+                &photo,
+                Some(&depth),
+                &camera,
+                Vec3::new(0.0, 0.0, -2.0),
+                EnvironmentOptions::default().face_size,
+            )
+            .unwrap(),
             Vec3::Y,
             &EnvironmentOptions::default(),
         )
@@ -326,9 +338,14 @@ mod tests {
         let out = calibrate_to_environment(
             before.clone(),
             &black,
-            &depth,
-            &camera,
-            Vec3::new(0.0, 0.0, -2.0),
+            &PhotoReprojection::new(
+                &black,
+                Some(&depth),
+                &camera,
+                Vec3::new(0.0, 0.0, -2.0),
+                EnvironmentOptions::default().face_size,
+            )
+            .unwrap(),
             Vec3::Y,
             &EnvironmentOptions::default(),
         )
