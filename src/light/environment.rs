@@ -1108,8 +1108,8 @@ mod tests {
             face_size: options.face_size / 2,
             ..options
         };
-        let err = Environment::from_reprojection(&photo, &shared, Vec3::Y, &[], &other_size)
-            .unwrap_err();
+        let err =
+            Environment::from_reprojection(&photo, &shared, Vec3::Y, &[], &other_size).unwrap_err();
         assert!(err.to_string().contains("face_size"), "{err}");
         let small = Raster::filled(4, 4, [0.5f32; 3]);
         assert!(matches!(

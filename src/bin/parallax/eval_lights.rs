@@ -21,7 +21,7 @@ use parallax::light::{
     sh9_from_cube, shadow_mask, CubeLevel, Environment, EstimateOptions, LightKind, Sh9,
     ShadowMethod, ShadowOptions, CUBE_FACES,
 };
-use parallax::mesh::{detect_surfaces, MeshOptions, SceneMesh, SurfaceOptions};
+use parallax::mesh::{detect_surfaces_with_confidence, MeshOptions, SceneMesh, SurfaceOptions};
 use parallax::reference::{self, Images, LightRecord, RenderOptions, SampleBudget};
 use parallax::{Error, Result};
 
@@ -430,10 +430,16 @@ fn evaluate(
         let options = parallax::stereo::StereoOptions::preset(parallax::stereo::Preset::Balanced);
         let disparity = parallax::stereo::match_pair(&l.view(), &r.view(), &options)?;
         let depth = disparity.disparity.map(|&d| c.depth_from_disparity(d));
-        // As the Scene does: normals from depth, the support planes' where they hold.
+        // As the Scene does: planes fitted on measured depth, normals from depth, the support
+        // planes' where they hold.
         let surface_options = SurfaceOptions::default();
         let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default())?;
-        let surfaces = detect_surfaces(&mesh, &camera, &surface_options)?;
+        let surfaces = detect_surfaces_with_confidence(
+            &mesh,
+            &camera,
+            Some(&disparity.confidence),
+            &surface_options,
+        )?;
         let mut normals = light::normals_from_depth(&depth, &camera, 0.05)?;
         surfaces.snap_normals(
             &depth,
