@@ -11,15 +11,17 @@
 //! then `n ∝ (−α·fx, β·fy, γ + α·cx + β·cy)` (oriented towards the camera).
 //!
 //! ## The fit
-//! `σ_w` is estimated once per depth map ([`inverse_depth_noise`]). Each sample starts from the
-//! best supported (within a 5×5 window) of three planes through it: constant inverse depth, the
-//! least-squares plane of its 3×3, or the plane of its mesh triangles. Then, for radii 2, 4, 8,
-//! 16, 32 pixels (windows thinned to at most 17×17 samples), iteratively reweighted least squares
-//! with Tukey's biweight on the residual in units of `σ_w` refits the plane. The weights are measured against the sample's own plane, so
-//! a neighbour across a depth discontinuity (or a stereo outlier) gets weight 0: the fit is
+//! `σ_w`, and how far its errors are correlated, are estimated once per depth map
+//! ([`correlated_noise`]). Each sample starts from the best supported (within a 5×5 window) of
+//! three planes through it: constant inverse depth, the least-squares plane of its 3×3, or the
+//! plane of its mesh triangles. Then, for radii 2, 4, 8, 16, 32 pixels (windows thinned to at most
+//! 17×17 samples), iteratively reweighted least squares with Tukey's biweight on the residual in
+//! units of `σ_w` refits the plane. The weights are measured against the sample's own plane, so a
+//! neighbour across a depth discontinuity (or a stereo outlier) gets weight 0: the fit is
 //! edge-aware without a separate edge test. Growth stops once the normal's standard error (from
-//! the fit's covariance) is below [`TARGET_NORMAL_ERROR_DEG`]; on exact depth that is at once, so
-//! noise-free input keeps its local normals.
+//! the fit's covariance, inflated where samples lie closer than the noise's correlation length)
+//! is below [`TARGET_NORMAL_ERROR_DEG`]; on exact depth that is at once, so noise-free input keeps
+//! its local normals.
 
 use glam::{DMat3, DVec3, Vec3};
 use rayon::prelude::*;
@@ -169,7 +171,8 @@ pub(crate) struct NoiseScale {
 /// differences are measured at spacings 1, 2, 4, 8 and 16 ([`inverse_depth_noise`] at each). On
 /// white noise they are equal; on correlated noise they grow with the spacing up to the
 /// correlation length and then level off (measured on a 128-spp `room` render through our
-/// matcher: 0.03 px of disparity at spacings 1–2, 0.15 px from 16 on, the true error's spread).
+/// matcher: 0.03 px of disparity at spacings 1–2, 0.145 px at 16, where the true error's spread
+/// is 0.149 px).
 /// `σ_w` is the largest of them before curvature takes over ([`CURVATURE_RATIO`]); the
 /// correlation length is the smallest spacing that reaches half of it. `None` as for
 /// [`inverse_depth_noise`].
