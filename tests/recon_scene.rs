@@ -594,6 +594,49 @@ fn placement_trusts_the_detected_plane_over_a_noisy_vertex_normal() {
 }
 
 #[test]
+fn placement_prefers_the_plane_whose_extent_holds_the_hit() {
+    // A second, slightly tilted floor piece elsewhere in the image whose plane passes exactly
+    // through the hit (a patch fitted to biased stereo depth): nearer than the floor itself, but
+    // not the surface under the pixel.
+    let room = room(320, 240, 280.0);
+    let mesh = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
+    let mut surfaces = surfaces_of(&room, &mesh);
+    let floor = surfaces
+        .surfaces
+        .iter()
+        .position(|s| {
+            let c = room.to_camera.transpose() * s.centroid;
+            s.kind == SurfaceKind::Horizontal && (c.y - FLOOR_Y).abs() < 0.05
+        })
+        .expect("floor");
+    let spot = room.to_camera * Vec3::new(1.0, FLOOR_Y, -2.0);
+    let pixel = room.camera.project(spot).unwrap().0;
+    // The detected floor 1 cm off the hit (as stereo planes are), the patch's plane through it.
+    let hit = pick(&Bvh::new(&mesh), &room.camera, pixel).unwrap();
+    surfaces.surfaces[floor].offset += 0.01;
+    let mut patch = surfaces.surfaces[floor].clone();
+    patch.normal = (glam::Quat::from_rotation_x(4f32.to_radians()) * patch.normal).normalize();
+    patch.offset = patch.normal.dot(hit.point);
+    patch.centroid = hit.point + 5.0 * Vec3::X;
+    patch.polygon = patch.polygon.iter().map(|&q| q + 5.0 * Vec3::X).collect();
+    assert!(!patch.contains_point(hit.point));
+    assert!(patch.distance(hit.point).abs() < surfaces.surfaces[floor].distance(hit.point).abs());
+    surfaces.surfaces.push(patch);
+    let p = place(
+        &Bvh::new(&mesh),
+        &room.camera,
+        &surfaces,
+        pixel,
+        0.3,
+        0.0,
+        &PlaceOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(p.surface, Some(floor));
+    assert!(surfaces.surfaces[floor].distance(p.base).abs() < 1e-4);
+}
+
+#[test]
 fn a_pixel_in_a_narrow_crack_places_on_the_surface_beside_it() {
     let room = room(320, 240, 280.0);
     let to_world = room.to_camera.transpose();

@@ -10,7 +10,7 @@
 use glam::{Mat3, Mat4, Vec2, Vec3};
 
 use super::bvh::{camera_ray, Bvh, Hit, Ray};
-use super::surfaces::Surfaces;
+use super::surfaces::{SupportSurface, Surfaces};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 
@@ -173,7 +173,9 @@ pub fn place_on_ray(
     // Snap onto the detected plane under the hit, if one agrees: the hit lies on the plane and
     // either inside its extent or with a normal like the plane's. A plane fitted to thousands of
     // points knows its orientation better than the noisy normal of one stereo vertex, so inside
-    // the extent the vertex normal is not asked.
+    // the extent the vertex normal is not asked. Planes whose extent holds the hit go first, the
+    // nearest of them: a small piece elsewhere whose plane happens to pass closer (a floor patch
+    // fitted to biased stereo depth under a table) is not the surface under the hit.
     let dir = ray.direction.normalize();
     let distance = (hit.point - ray.origin).length();
     let cos20 = 20f32.to_radians().cos();
@@ -186,9 +188,10 @@ pub fn place_on_ray(
                 && (s.normal.dot(hit.normal) >= cos20 || s.contains_point(hit.point))
         })
         .min_by(|a, b| {
-            a.1.distance(hit.point)
-                .abs()
-                .total_cmp(&b.1.distance(hit.point).abs())
+            let key =
+                |s: &SupportSurface| (!s.contains_point(hit.point), s.distance(hit.point).abs());
+            let (ka, kb) = (key(a.1), key(b.1));
+            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
         })
         .and_then(|(i, s)| {
             // Exact ray–plane intersection.

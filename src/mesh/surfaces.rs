@@ -375,7 +375,7 @@ pub fn detect_surfaces_with_confidence(
         found.push((plane, piece));
     }
 
-    let (up, up_source) = estimate_up(&found);
+    let (up, up_source) = estimate_up(&found, &points);
     let mut surfaces: Vec<SupportSurface> = found
         .iter()
         .map(|(plane, piece)| describe(plane, piece, &points, camera, up, stride))
@@ -734,17 +734,19 @@ impl ImageGrid {
 /// count towards "up": the gravity prior, i.e. the camera pitched or rolled by at most this much.
 const MAX_UP_TILT_DEG: f32 = 35.0;
 
-fn estimate_up(found: &[(Plane, Vec<usize>)]) -> (Vec3, UpSource) {
+fn estimate_up(found: &[(Plane, Vec<usize>)], points: &[Point]) -> (Vec3, UpSource) {
     let cos_gate = MAX_UP_TILT_DEG.to_radians().cos();
     // Candidate up directions: normals of near-horizontal planes, ceilings flipped.
     let candidates: Vec<(Vec3, usize)> = found
         .iter()
         .filter_map(|(plane, piece)| {
             let n = plane.normal;
+            // Weighed by measured points: filled depth says nothing about a plane's tilt.
+            let weight = piece.iter().filter(|&&i| points[i].measured).count();
             if n.y >= cos_gate {
-                Some((n, piece.len()))
+                Some((n, weight))
             } else if -n.y >= cos_gate {
-                Some((-n, piece.len()))
+                Some((-n, weight))
             } else {
                 None
             }

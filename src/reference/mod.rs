@@ -346,7 +346,9 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<Images> {
         cy: camera.cy,
         baseline_m: camera.baseline,
         doffs: 0.0,
-        max_disparity: None,
+        // As the pair's calib.txt says (`ndisp`), so that a host given this calibration searches
+        // the range the file would give it.
+        max_disparity: Some(outputs::DisparityRange::of(&disparity).ndisp),
     };
     let rays = counts.closest + counts.shadow;
     Ok(Images {

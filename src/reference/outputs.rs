@@ -229,17 +229,7 @@ impl Images {
     /// rounded up to a multiple of 16).
     pub fn calib_txt(&self) -> String {
         let c = &self.calibration;
-        let finite = || {
-            self.disparity
-                .pixels()
-                .iter()
-                .copied()
-                .filter(|d| d.is_finite())
-        };
-        let vmin = finite().fold(f32::INFINITY, f32::min);
-        let vmax = finite().fold(0.0f32, f32::max);
-        let vmin = if vmin.is_finite() { vmin.floor() } else { 0.0 };
-        let ndisp = (((vmax.ceil() as u32) / 16 + 1) * 16).max(16);
+        let DisparityRange { vmin, vmax, ndisp } = DisparityRange::of(&self.disparity);
         let cam = format!(
             "[{} 0 {}; 0 {} {}; 0 0 1]",
             c.focal_px, c.cx, c.focal_px, c.cy
@@ -251,7 +241,7 @@ impl Images {
             self.left.width(),
             self.left.height(),
             vmin,
-            vmax.ceil(),
+            vmax,
         )
     }
 
@@ -326,4 +316,27 @@ pub(crate) fn environment_map(env: &super::lights::EnvLight, camera: &Camera) ->
         let world = camera.right * c.x + camera.up * c.y - camera.forward * c.z;
         env.radiance(world.normalize()).to_array()
     })
+}
+
+/// The disparity range of a rendered pair, as Middlebury's `calib.txt` states it.
+pub(crate) struct DisparityRange {
+    /// Smallest disparity, rounded down, pixels (0 without any).
+    pub(crate) vmin: f32,
+    /// Largest disparity, rounded up, pixels.
+    pub(crate) vmax: f32,
+    /// Disparities worth searching: above `vmax`, rounded up to a multiple of 16, at least 16.
+    pub(crate) ndisp: u32,
+}
+
+impl DisparityRange {
+    pub(crate) fn of(disparity: &Raster<f32>) -> DisparityRange {
+        let finite = || disparity.pixels().iter().copied().filter(|d| d.is_finite());
+        let vmin = finite().fold(f32::INFINITY, f32::min);
+        let vmax = finite().fold(0.0f32, f32::max).ceil();
+        DisparityRange {
+            vmin: if vmin.is_finite() { vmin.floor() } else { 0.0 },
+            vmax,
+            ndisp: (((vmax as u32) / 16 + 1) * 16).max(16),
+        }
+    }
 }

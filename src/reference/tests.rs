@@ -512,6 +512,8 @@ fn middlebury_layout_round_trips() {
         .copied()
         .fold(0.0f32, f32::max);
     assert!(calib.max_disparity.unwrap() as f32 >= max_d);
+    // The calibration handed out in memory says what the file says, search range included.
+    assert_eq!(images.calibration.max_disparity, calib.max_disparity);
     let limits = crate::image::ImageLimits::default();
     let disp = crate::image::Raster::read_pfm(dir.path().join("disp0GT.pfm"), &limits).unwrap();
     assert_eq!(disp.width(), 32);
