@@ -29,7 +29,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::filters::{check_same, check_size, luminance};
+use super::filters::{check_photo_camera, check_same, check_size, luminance};
 use super::model::{
     cube_direction, cube_texel, CubeLevel, CubeMap, Light, LightKind, Sh9, CUBE_FACES,
 };
@@ -408,13 +408,7 @@ impl PhotoReprojection {
         }
         .validate()?;
         camera.validate()?;
-        let (w, h) = check_size("photo", photo)?;
-        if (w, h) != (camera.width as usize, camera.height as usize) {
-            return Err(Error::SizeMismatch(format!(
-                "photo is {w}x{h} but the camera's image is {}x{}",
-                camera.width, camera.height
-            )));
-        }
+        let (w, h) = check_photo_camera(photo, camera)?;
         if let Some(d) = depth {
             check_same("depth map", photo, d)?;
         }

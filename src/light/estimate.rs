@@ -285,21 +285,16 @@ mod tests {
             confidence: 0.8,
         };
         let ambient = [0.1f32, 0.05, 0.02];
-        let out = calibrate_to_environment(
-            fit(vec![lamp, sun], ambient, false),
-            &photo,
-            &PhotoReprojection::new(
-                &photo,
-                Some(&depth),
-                &camera,
-                Vec3::new(0.0, 0.0, -2.0),
-                EnvironmentOptions::default().face_size,
-            )
-            .unwrap(),
-            Vec3::Y,
-            &EnvironmentOptions::default(),
-        )
-        .unwrap();
+        // The calibration around a point 2 m ahead of the camera, up along +Y.
+        let calibrate = |fit: LightFit, photo: &Raster<[f32; 3]>| {
+            let options = EnvironmentOptions::default();
+            let point = Vec3::new(0.0, 0.0, -2.0);
+            let reprojection =
+                PhotoReprojection::new(photo, Some(&depth), &camera, point, options.face_size)
+                    .unwrap();
+            calibrate_to_environment(fit, photo, &reprojection, Vec3::Y, &options).unwrap()
+        };
+        let out = calibrate(fit(vec![lamp, sun], ambient, false), &photo);
         for (a, b) in out.ambient.iter().zip([0.4, 0.3, 0.2]) {
             assert!((a - b).abs() < 0.02, "{:?}", out.ambient);
         }
@@ -315,41 +310,13 @@ mod tests {
             assert!((out.lights[0].intensity[k] - want).abs() < 1e-4 * want.max(1.0));
         }
         // A fallback keeps the sources it did not fit as they were.
-        let out = calibrate_to_environment(
-            fit(vec![lamp, sun], ambient, true),
-            &photo,
-            &PhotoReprojection::new(
-                &photo,
-                Some(&depth),
-                &camera,
-                Vec3::new(0.0, 0.0, -2.0),
-                EnvironmentOptions::default().face_size,
-            )
-            .unwrap(),
-            Vec3::Y,
-            &EnvironmentOptions::default(),
-        )
-        .unwrap();
+        let out = calibrate(fit(vec![lamp, sun], ambient, true), &photo);
         assert_eq!(out.lights[0], lamp);
         assert!(out.lights[1].intensity[0] > sun.intensity[0]);
         // A black photo measures nothing and changes nothing.
         let black = Raster::filled(64, 48, [0.0f32; 3]);
         let before = fit(vec![lamp, sun], ambient, false);
-        let out = calibrate_to_environment(
-            before.clone(),
-            &black,
-            &PhotoReprojection::new(
-                &black,
-                Some(&depth),
-                &camera,
-                Vec3::new(0.0, 0.0, -2.0),
-                EnvironmentOptions::default().face_size,
-            )
-            .unwrap(),
-            Vec3::Y,
-            &EnvironmentOptions::default(),
-        )
-        .unwrap();
+        let out = calibrate(before.clone(), &black);
         assert_eq!(out, before);
     }
 }

@@ -124,6 +124,21 @@ pub(crate) fn check_size<T>(what: &str, r: &Raster<T>) -> crate::error::Result<(
     Ok((r.width(), r.height()))
 }
 
+/// Checks that the photo is not empty and has the camera's image size; returns its size.
+pub(crate) fn check_photo_camera<T>(
+    photo: &Raster<T>,
+    camera: &crate::camera::Camera,
+) -> crate::error::Result<(usize, usize)> {
+    let (w, h) = check_size("photo", photo)?;
+    if (w, h) != (camera.width as usize, camera.height as usize) {
+        return Err(crate::error::Error::SizeMismatch(format!(
+            "photo is {w}x{h} but the camera's image is {}x{}",
+            camera.width, camera.height
+        )));
+    }
+    Ok((w, h))
+}
+
 /// Checks that `other` has the size of the photo.
 pub(crate) fn check_same<T, U>(
     what: &str,

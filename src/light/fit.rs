@@ -26,7 +26,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::filters::{check_same, check_size, luminance};
+use super::filters::{check_photo_camera, check_same, luminance};
 use super::model::{Light, LightKind};
 use super::shadow_mask::NO_REGION;
 use crate::camera::Camera;
@@ -458,13 +458,7 @@ fn fibonacci(count: usize, up: Vec3, min_up: f32) -> Vec<Vec3> {
 pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -> Result<LightFit> {
     options.validate()?;
     inputs.camera.validate()?;
-    let (w, h) = check_size("photo", inputs.photo)?;
-    if (w, h) != (inputs.camera.width as usize, inputs.camera.height as usize) {
-        return Err(Error::SizeMismatch(format!(
-            "photo is {w}x{h} but the camera's image is {}x{}",
-            inputs.camera.width, inputs.camera.height
-        )));
-    }
+    let (w, h) = check_photo_camera(inputs.photo, inputs.camera)?;
     check_same("depth map", inputs.photo, inputs.depth)?;
     check_same("normal map", inputs.photo, inputs.normals)?;
     check_same("region map", inputs.photo, inputs.regions)?;

@@ -16,7 +16,7 @@
 
 use glam::Vec3;
 
-use super::filters::{check_same, check_size, components, luminance};
+use super::filters::{check_photo_camera, check_same, components, luminance};
 use super::model::{Light, LightKind};
 use super::normals::normals_from_depth;
 use crate::camera::Camera;
@@ -125,13 +125,7 @@ pub fn detect_sources(
 ) -> Result<Vec<Light>> {
     options.validate()?;
     camera.validate()?;
-    let (w, h) = check_size("photo", photo)?;
-    if (w, h) != (camera.width as usize, camera.height as usize) {
-        return Err(Error::SizeMismatch(format!(
-            "photo is {w}x{h} but the camera's image is {}x{}",
-            camera.width, camera.height
-        )));
-    }
+    let (w, h) = check_photo_camera(photo, camera)?;
     if let Some(d) = depth {
         check_same("depth map", photo, d)?;
     }

@@ -368,6 +368,38 @@ mod tests {
         (v[v.len() / 2], v[v.len() * 9 / 10])
     }
 
+    /// Depth of the floor `n · p = −1.5` up to 12 m, seen in stereo with focal length × baseline
+    /// `f_b` (px·m) and `disparity_error(x, y)` pixels added to its disparity; NaN elsewhere.
+    fn stereo_floor(
+        c: &Camera,
+        n: Vec3,
+        f_b: f32,
+        mut disparity_error: impl FnMut(usize, usize) -> f32,
+    ) -> Raster<f32> {
+        Raster::from_fn(c.width as usize, c.height as usize, |x, y| {
+            let z = plane_depth(c, n, -1.5, x, y);
+            if !(z > 0.0 && z < 12.0) {
+                return f32::NAN;
+            }
+            let d = f_b / z + disparity_error(x, y);
+            if d > 0.0 {
+                f_b / d
+            } else {
+                f32::NAN
+            }
+        })
+    }
+
+    /// Median and 90th percentile of the normals' angles to `n`, degrees.
+    fn angle_spread(normals: &[[f32; 3]], n: Vec3) -> (f32, f32) {
+        median_p90(
+            normals
+                .iter()
+                .map(|v| Vec3::from(*v).angle_between(n).to_degrees())
+                .collect(),
+        )
+    }
+
     #[test]
     fn normals_of_a_plane_under_stereo_noise_are_within_a_few_degrees() {
         // A floor 1.5 m below a camera pitched down 20°, seen in stereo (f = 400 px, B = 0.1 m)
@@ -376,29 +408,12 @@ mod tests {
         let n = glam::Mat3::from_rotation_x(20f32.to_radians()) * Vec3::Y;
         let (f_b, sigma_d) = (400.0 * 0.1, 0.5);
         let mut rng = crate::mesh::surfaces::XorShift(11);
-        let exact = |x, y| plane_depth(&c, n, -1.5, x, y);
-        let depth = Raster::from_fn(200, 150, |x, y| {
-            let z = exact(x, y);
-            if !(z > 0.0 && z < 12.0) {
-                return f32::NAN;
-            }
-            let d = f_b / z + sigma_d * crate::mesh::local_fit::tests::gaussian(&mut rng);
-            if d > 0.0 {
-                f_b / d
-            } else {
-                f32::NAN
-            }
+        let depth = stereo_floor(&c, n, f_b, |_, _| {
+            sigma_d * crate::mesh::local_fit::tests::gaussian(&mut rng)
         });
         let m = SceneMesh::from_depth(&depth, &c, &MeshOptions::default()).unwrap();
         check_invariants(&m);
-        let errors = |normals: &[[f32; 3]]| {
-            median_p90(
-                normals
-                    .iter()
-                    .map(|v| Vec3::from(*v).angle_between(n).to_degrees())
-                    .collect(),
-            )
-        };
+        let errors = |normals: &[[f32; 3]]| angle_spread(normals, n);
         let (median, p90) = errors(&m.normals);
         assert!(median < 3.0 && p90 < 8.0, "median {median}°, p90 {p90}°");
         // The per-pixel triangle normals this replaces are far off: the test can tell them apart.
@@ -417,26 +432,10 @@ mod tests {
         let n = glam::Mat3::from_rotation_x(20f32.to_radians()) * Vec3::Y;
         let f_b = 400.0 * 0.1;
         let noise = crate::mesh::local_fit::tests::correlated_noise_field(240, 180, 4, 0.3, 5);
-        let depth = Raster::from_fn(240, 180, |x, y| {
-            let z = plane_depth(&c, n, -1.5, x, y);
-            if !(z > 0.0 && z < 12.0) {
-                return f32::NAN;
-            }
-            let d = f_b / z + *noise.get(x, y);
-            if d > 0.0 {
-                f_b / d
-            } else {
-                f32::NAN
-            }
-        });
+        let depth = stereo_floor(&c, n, f_b, |x, y| *noise.get(x, y));
         let m = SceneMesh::from_depth(&depth, &c, &MeshOptions::default()).unwrap();
         check_invariants(&m);
-        let (median, p90) = median_p90(
-            m.normals
-                .iter()
-                .map(|v| Vec3::from(*v).angle_between(n).to_degrees())
-                .collect(),
-        );
+        let (median, p90) = angle_spread(&m.normals, n);
         assert!(median < 4.0 && p90 < 12.0, "median {median}°, p90 {p90}°");
     }
 
