@@ -10,7 +10,7 @@
 use glam::{Mat3, Mat4, Vec2, Vec3};
 
 use super::bvh::{camera_ray, Bvh, Hit, Ray};
-use super::surfaces::{SupportSurface, Surfaces};
+use super::surfaces::Surfaces;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 
@@ -183,17 +183,20 @@ pub fn place_on_ray(
         .surfaces
         .iter()
         .enumerate()
-        .filter(|(_, s)| {
-            s.distance(hit.point).abs() <= options.snap_tolerance * distance
-                && (s.normal.dot(hit.normal) >= cos20 || s.contains_point(hit.point))
+        .map(|(i, s)| {
+            (
+                i,
+                s,
+                s.contains_point(hit.point),
+                s.distance(hit.point).abs(),
+            )
         })
-        .min_by(|a, b| {
-            let key =
-                |s: &SupportSurface| (!s.contains_point(hit.point), s.distance(hit.point).abs());
-            let (ka, kb) = (key(a.1), key(b.1));
-            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+        .filter(|&(_, s, inside, off)| {
+            off <= options.snap_tolerance * distance
+                && (inside || s.normal.dot(hit.normal) >= cos20)
         })
-        .and_then(|(i, s)| {
+        .min_by(|a, b| (!a.2).cmp(&!b.2).then(a.3.total_cmp(&b.3)))
+        .and_then(|(i, s, _, _)| {
             // Exact ray–plane intersection.
             let denom = s.normal.dot(dir);
             if denom.abs() < 1e-6 {
