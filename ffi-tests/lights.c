@@ -4,6 +4,25 @@
 
 #include "check.h"
 
+enum { W = 96, H = 64, SHIFT = 6 };
+
+/* A random texture, brighter on the left: a wall seen from different points looks different. */
+static uint8_t texel(long x, long y) {
+    unsigned long long v = (unsigned long long)(x * 73856093L) ^ (unsigned long long)(y * 19349663L);
+    v ^= v >> 13;
+    v *= 0x5bd1e995ull;
+    return (uint8_t)((v >> 24) % 128 + (x < W / 2 ? 120 : 0));
+}
+
+static float max_abs_diff(const float *a, const float *b, int n) {
+    float m = 0;
+    for (int i = 0; i < n; i++) {
+        float d = a[i] > b[i] ? a[i] - b[i] : b[i] - a[i];
+        if (d > m) m = d;
+    }
+    return m;
+}
+
 int main(void) {
     plx_context *ctx = NULL;
     CHECK_STATUS(NULL, plx_context_new(NULL, &ctx), PLX_STATUS_OK);
@@ -121,6 +140,38 @@ int main(void) {
     CHECK_STATUS(scene, plx_scene_environment_cube_size(scene, NULL), PLX_STATUS_NULL_ARGUMENT);
     free(face);
     CHECK_STATUS(scene, plx_scene_set_environment_equirect(scene, NULL), PLX_STATUS_OK);
+
+    /* The estimated environment is built around the insertion point the host names: a wall
+     * brighter on its left half lights a point near its left half differently. NULL goes back to
+     * the default point; a NaN coordinate is refused and changes nothing. */
+    static uint8_t left[W * H], right[W * H];
+    for (long y = 0; y < H; y++)
+        for (long x = 0; x < W; x++) {
+            left[y * W + x] = texel(x, y);
+            right[y * W + x] = texel(x + SHIFT, y);
+        }
+    plx_image l = {left, W, H, W, PLX_PIXEL_FORMAT_GRAY8};
+    plx_image r = {right, W, H, W, PLX_PIXEL_FORMAT_GRAY8};
+    CHECK_STATUS(scene, plx_scene_set_stereo_pair(scene, &l, &r), PLX_STATUS_OK);
+    plx_calibration calib = {100.0, W / 2.0, H / 2.0, 0.12, 0.0, 16};
+    CHECK_STATUS(scene, plx_scene_set_calibration(scene, &calib), PLX_STATUS_OK);
+    float sh_default[27], sh_left[27], sh_right[27];
+    CHECK_STATUS(scene, plx_scene_sh9(scene, sh_default), PLX_STATUS_OK);
+    /* The wall is 2 m away (f·B/d = 100 · 0.12 / 6); stand 0.3 m in front of it. */
+    const float at_left[3] = {-0.6f, 0.0f, -1.7f}, at_right[3] = {0.6f, 0.0f, -1.7f};
+    CHECK_STATUS(scene, plx_scene_set_insertion_point(scene, at_left), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_sh9(scene, sh_left), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_set_insertion_point(scene, at_right), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_sh9(scene, sh_right), PLX_STATUS_OK);
+    CHECK(sh_left[0] > sh_right[0] + 0.02f);
+    const float bad_point[3] = {0.0f, 0.0f / 0.0f, -1.0f};
+    CHECK_STATUS(scene, plx_scene_set_insertion_point(scene, bad_point), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "insertion point");
+    CHECK_STATUS(scene, plx_scene_sh9(scene, sh_back), PLX_STATUS_OK);
+    CHECK(max_abs_diff(sh_back, sh_right, 27) == 0.0f);
+    CHECK_STATUS(scene, plx_scene_set_insertion_point(scene, NULL), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_sh9(scene, sh_back), PLX_STATUS_OK);
+    CHECK(max_abs_diff(sh_back, sh_default, 27) == 0.0f);
 
     plx_scene_free(scene);
     plx_context_free(ctx);

@@ -738,6 +738,17 @@ enum plx_status plx_scene_reset_lights(struct plx_scene *scene);
 enum plx_status plx_scene_set_sh9(struct plx_scene *scene,
                                   const float *sh9);
 
+// Names where the host will put its objects, `point[3]` in the camera frame (metres, +X right,
+// +Y up, −Z forward): the estimated environment (and so the ambient SH9 and what glossy
+// materials reflect) is the photo re-projected around it. NULL = back to the default (the median
+// point of the up-facing surfaces, 2 cm above them). Setting it re-estimates the lighting on the
+// next query but not the depth or mesh. Errors: `INVALID_ARGUMENT` for a non-finite coordinate
+// (the scene is unchanged).
+//
+// # Safety
+// `scene` is a live scene; `point` is NULL or points to 3 readable floats.
+enum plx_status plx_scene_set_insertion_point(struct plx_scene *scene, const float *point);
+
 // Replaces the estimated environment with the host's equirectangular map (copied): twice as
 // wide as high, the centre column looking along −Z (the camera's view), the top row +Y, in the
 // camera frame. Float formats are linear radiance relative to the photo's exposure; 8-bit

@@ -245,3 +245,86 @@ fn composite_without_artefacts_is_the_photo_and_runs_no_stereo_and_bad_inserts_a
         assert!(stderr.contains(needle), "{insert}: {stderr}");
     }
 }
+
+#[test]
+fn lights_from_host_depth_are_built_around_the_named_insertion_point() {
+    let dir = tempfile::tempdir().unwrap();
+    // The floor-and-wall depth of the surfaces test, and a photo: a bright wall over a grey floor.
+    let (w, h, f) = (64usize, 48usize, 60.0f32);
+    let depth = Raster::from_fn(w, h, |_, y| {
+        let dy = -((y as f32 + 0.5) - h as f32 / 2.0) / f;
+        if dy < 0.0 {
+            (-1.0 / dy).min(6.0)
+        } else {
+            6.0
+        }
+    });
+    depth.write_pfm(dir.path().join("z.pfm")).unwrap();
+    let photo: Vec<u8> = (0..h)
+        .flat_map(|y| (0..w).map(move |_| if y < h / 2 { 220 } else { 90 }))
+        .collect();
+    Image::from_bytes(w as u32, h as u32, PixelFormat::Gray8, photo)
+        .unwrap()
+        .save_png(dir.path().join("photo.png"))
+        .unwrap();
+    let lights = |point: Option<&str>| -> serde_json::Value {
+        let mut args = vec![
+            "lights",
+            "--quiet",
+            "--depth",
+            "z.pfm",
+            "--focal",
+            "60",
+            "--image",
+            "photo.png",
+            "--out",
+            "l.json",
+            "--report",
+            "r.json",
+        ];
+        if let Some(p) = point {
+            args.extend(["--insertion-point", p]);
+        }
+        run(&args, dir.path());
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("l.json")).unwrap()).unwrap()
+    };
+    let default = lights(None);
+    let near_wall = lights(Some("0,-0.5,-5.5"));
+    let point: Vec<f64> = near_wall["insertion_point"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(point, [0.0, -0.5, -5.5]);
+    // Default: 2 cm above the floor's median point; next to the bright wall the SH differs.
+    assert!(
+        (default["insertion_point"][1].as_f64().unwrap() + 0.98).abs() < 0.01,
+        "{default}"
+    );
+    let sh = |v: &serde_json::Value| v["sh9"][0].as_f64().unwrap();
+    assert!(
+        (sh(&default) - sh(&near_wall)).abs() > 1e-3,
+        "{default} {near_wall}"
+    );
+
+    let out = parallax()
+        .current_dir(dir.path())
+        .args([
+            "lights",
+            "--depth",
+            "z.pfm",
+            "--focal",
+            "60",
+            "--image",
+            "photo.png",
+            "--out",
+            "l.json",
+            "--insertion-point",
+            "0,1",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("X,Y,Z"));
+}

@@ -496,6 +496,13 @@ public:
     void set_sh9(const Sh9& sh9) { check(plx_scene_set_sh9(handle_, sh9.data())); }
     /// Back to the estimated ambient light.
     void reset_sh9() { check(plx_scene_set_sh9(handle_, nullptr)); }
+    /// Where the objects will go (camera frame, metres): the estimated environment is built
+    /// around it.
+    void set_insertion_point(const std::array<float, 3>& point) {
+        check(plx_scene_set_insertion_point(handle_, point.data()));
+    }
+    /// Back to the default insertion point (the median up-facing surface point).
+    void reset_insertion_point() { check(plx_scene_set_insertion_point(handle_, nullptr)); }
     /// The host's equirectangular environment map (2:1, copied).
     void set_environment_equirect(const plx_image& image) {
         check(plx_scene_set_environment_equirect(handle_, &image));

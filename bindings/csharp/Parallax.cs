@@ -721,6 +721,15 @@ namespace Parallax
             Check(Native.plx_scene_set_sh9(Handle, sh9));
         }
 
+        /// <summary>Where the objects will go (3 floats, camera frame, metres): the estimated
+        /// environment is built around it. null = back to the default point.</summary>
+        public void SetInsertionPoint(float[] point)
+        {
+            if (point != null && point.Length != 3)
+                throw new ArgumentException("an insertion point takes 3 floats");
+            Check(Native.plx_scene_set_insertion_point(Handle, point));
+        }
+
         /// <summary>The host's equirectangular environment (twice as wide as high, rows top first).</summary>
         public void SetEnvironmentEquirect(byte[] pixels, int width, int height, PlxPixelFormat format, int stride = 0)
         {

@@ -157,6 +157,32 @@ pub unsafe extern "C" fn plx_scene_set_sh9(scene: *mut plx_scene, sh9: *const f3
     })
 }
 
+/// Names where the host will put its objects, `point[3]` in the camera frame (metres, +X right,
+/// +Y up, −Z forward): the estimated environment (and so the ambient SH9 and what glossy
+/// materials reflect) is the photo re-projected around it. NULL = back to the default (the median
+/// point of the up-facing surfaces, 2 cm above them). Setting it re-estimates the lighting on the
+/// next query but not the depth or mesh. Errors: `INVALID_ARGUMENT` for a non-finite coordinate
+/// (the scene is unchanged).
+///
+/// # Safety
+/// `scene` is a live scene; `point` is NULL or points to 3 readable floats.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_set_insertion_point(
+    scene: *mut plx_scene,
+    point: *const f32,
+) -> Status {
+    with_scene(scene, |scene| {
+        if point.is_null() {
+            scene.clear_insertion_point();
+            return Ok(());
+        }
+        let mut xyz = [0.0f32; 3];
+        xyz.copy_from_slice(std::slice::from_raw_parts(point, 3));
+        scene.set_insertion_point(xyz)?;
+        Ok(())
+    })
+}
+
 /// Replaces the estimated environment with the host's equirectangular map (copied): twice as
 /// wide as high, the centre column looking along −Z (the camera's view), the top row +Y, in the
 /// camera frame. Float formats are linear radiance relative to the photo's exposure; 8-bit

@@ -22,6 +22,8 @@ pub(super) struct SceneLighting {
     pub(super) host_lights: Input<Vec<Light>>,
     pub(super) host_sh9: Input<Sh9>,
     pub(super) host_environment: Input<Raster<[f32; 3]>>,
+    /// Where the host will insert its objects: the estimated environment is built around it.
+    pub(super) insertion_point: Input<[f32; 3]>,
     /// Shadow mask, sources, fitted lights and the photo's environment, estimated together.
     estimate: Product<LightingEstimate>,
     /// The environment built from the host's map.
@@ -123,6 +125,36 @@ impl Scene {
         self.lighting.host_environment.version = self.bump();
     }
 
+    /// Names where the artefacts will sit (camera frame, metres): the estimated environment, and
+    /// so the ambient SH9 and what glossy materials reflect, is the photo re-projected around this
+    /// point. Without it the estimate takes the median point of the up-facing surfaces (see
+    /// [`estimate_lighting`]), which can be metres from an object placed on a table. Setting it
+    /// re-estimates the lighting but not the reconstruction; setting the point it already has
+    /// changes nothing.
+    ///
+    /// # Errors
+    /// `InvalidArgument` when a coordinate is not finite; the scene is unchanged.
+    pub fn set_insertion_point(&mut self, point: [f32; 3]) -> Result<()> {
+        if point.iter().any(|c| !c.is_finite()) {
+            return Err(Error::invalid(format!(
+                "insertion point must be finite, got {point:?}"
+            )));
+        }
+        // Hosts set it every frame; the same point must not re-estimate the lighting.
+        if self.lighting.insertion_point.value != Some(point) {
+            self.lighting.insertion_point.value = Some(point);
+            self.lighting.insertion_point.version = self.bump();
+        }
+        Ok(())
+    }
+
+    /// Back to the estimated insertion point.
+    pub fn clear_insertion_point(&mut self) {
+        if self.lighting.insertion_point.value.take().is_some() {
+            self.lighting.insertion_point.version = self.bump();
+        }
+    }
+
     /// The host's lights, if it set them.
     pub fn host_lights(&self) -> Option<&[Light]> {
         self.lighting.host_lights.value.as_deref()
@@ -153,8 +185,10 @@ impl Scene {
             self.depth.generation,
             self.camera.generation,
             self.surfaces.generation,
+            self.lighting.insertion_point.version,
         ];
         let depth = Arc::clone(&base.0);
+        let insertion_point = self.lighting.insertion_point.value;
         let tolerance = self
             .surface_options
             .value
@@ -173,7 +207,7 @@ impl Scene {
                         Some(&normals),
                         &camera,
                         surfaces.up.to_array(),
-                        None,
+                        insertion_point,
                         &EstimateOptions::default(),
                     )
                 })?;
@@ -355,5 +389,29 @@ mod tests {
         // None of this touched the reconstruction.
         s.lighting_estimate().unwrap();
         assert_eq!(status(&s, "stereo"), Some(StageStatus::Reused));
+    }
+
+    #[test]
+    fn the_environment_is_built_around_the_hosts_insertion_point() {
+        let mut s = scene_with_pair();
+        let default = s.lighting_estimate().unwrap();
+        let point = [0.1, -0.2, -0.5];
+        s.set_insertion_point(point).unwrap();
+        let moved = s.lighting_estimate().unwrap();
+        assert_eq!(status(&s, "lighting"), Some(StageStatus::Computed));
+        assert_eq!(status(&s, "stereo"), Some(StageStatus::Reused));
+        assert_eq!(moved.insertion_point, point);
+        assert_ne!(moved.insertion_point, default.insertion_point);
+        // The same point again (a host setting it every frame) keeps the estimate.
+        s.set_insertion_point(point).unwrap();
+        assert!(Arc::ptr_eq(&moved, &s.lighting_estimate().unwrap()));
+        let e = s.set_insertion_point([0.0, f32::NAN, -1.0]).unwrap_err();
+        assert!(e.to_string().contains("insertion point"), "{e}");
+        assert!(Arc::ptr_eq(&moved, &s.lighting_estimate().unwrap()));
+        s.clear_insertion_point();
+        assert_eq!(
+            s.lighting_estimate().unwrap().insertion_point,
+            default.insertion_point
+        );
     }
 }

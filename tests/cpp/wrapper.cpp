@@ -51,6 +51,11 @@ int main() {
     scene.reset_sh9();
     sh9[4] = std::numeric_limits<float>::infinity();
     EXPECT(status_of([&] { scene.set_sh9(sh9); }) == PLX_STATUS_INVALID_ARGUMENT);
+    scene.set_insertion_point({0.1f, -0.5f, -2.0f});
+    EXPECT(status_of([&] {
+               scene.set_insertion_point({0.0f, std::numeric_limits<float>::quiet_NaN(), -2.0f});
+           }) == PLX_STATUS_INVALID_ARGUMENT);
+    scene.reset_insertion_point();
     parallax::Image env = parallax::Image::allocate(8, 4, PLX_PIXEL_FORMAT_RGB8);
     std::memset(env.pixels.data(), 128, env.pixels.size());
     scene.set_environment_equirect(env.view());

@@ -483,6 +483,9 @@ namespace Parallax
         public static extern PlxStatus plx_scene_set_sh9(SceneHandle scene, float[] sh9);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_scene_set_insertion_point(SceneHandle scene, float[] point);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
         public static extern PlxStatus plx_scene_set_environment_equirect(SceneHandle scene, ref PlxImage image);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]

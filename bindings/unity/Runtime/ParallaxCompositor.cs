@@ -135,11 +135,16 @@ namespace Parallax
                 foreach (uint id in ids)
                     scene.RemoveArtefact(id);
                 ids.Clear();
-                foreach (ArtefactPlacement a in artefacts)
+                for (int i = 0; i < artefacts.Count; i++)
                 {
+                    ArtefactPlacement a = artefacts[i];
                     uint id = scene.AddArtefactPath(a.gltfPath);
                     ids.Add(id);
-                    scene.PlaceArtefact(id, a.pixel.x, a.pixel.y, a.sizeM, a.yawDeg);
+                    float[] m = scene.PlaceArtefact(id, a.pixel.x, a.pixel.y, a.sizeM, a.yawDeg);
+                    // The room's light is estimated around the first object (re-estimated only
+                    // when it moves).
+                    if (i == 0)
+                        scene.SetInsertionPoint(new float[] { m[12], m[13], m[14] });
                 }
                 byte[] rgba = new byte[w * h * 4];
                 scene.Render(rgba, w, h, PlxPixelFormat.Rgba8);

@@ -206,7 +206,7 @@ pub fn run(args: Args) -> Result<()> {
         })?;
     }
     let spinner = args.common.spinner("rendering the composite");
-    for insert in &inserts {
+    for (i, insert) in inserts.iter().enumerate() {
         let id = if BUILTIN_ARTEFACTS.contains(&insert.what.as_str()) {
             scene.add_artefact_bytes(&builtin_glb(&insert.what)?, Mat4::IDENTITY)?
         } else {
@@ -219,6 +219,11 @@ pub fn run(args: Args) -> Result<()> {
             Error::InvalidArgument(m) => Error::invalid(format!("--insert {}: {m}", insert.what)),
             other => other,
         })?;
+        if i == 0 {
+            // The room's light is estimated around the first object, where it will be seen.
+            let centre = scene.artefact_bounds(id)?.world.center();
+            scene.set_insertion_point(centre.to_array())?;
+        }
     }
     let composite = scene.render(&options);
     absorb(&mut trace, &scene);

@@ -190,6 +190,11 @@ fn estimated(
     for (artefact, transform) in &truth.artefacts {
         scene.add_artefact(artefact.clone(), *transform)?;
     }
+    // A host knows where it puts its objects; the environment is built around the first one,
+    // as the true inputs' probe is.
+    if let Some((_, transform)) = truth.artefacts.first() {
+        scene.set_insertion_point(transform.w_axis.truncate().to_array())?;
+    }
     let mut warnings = Vec::new();
     let start = Instant::now();
     scene.mesh()?;
