@@ -163,11 +163,36 @@ struct Sample {
     mask: f32,
 }
 
-/// Screen-space visibility from `p` (normal `n`) towards `l` up to `max_dist` metres.
-fn visible(depth: &Raster<f32>, camera: &Camera, p: Vec3, n: Vec3, l: Vec3, max_dist: f32) -> bool {
+/// `σ_w` of a depth map's inverse depth (1/m), measured as the mesh's normal fit measures it; 0
+/// when it cannot be (too few valid pixels).
+fn depth_noise(depth: &Raster<f32>) -> f32 {
+    let w = crate::mesh::local_fit::inverse_depth(depth);
+    crate::mesh::local_fit::correlated_noise(&w).map_or(0.0, |n| n.sigma as f32)
+}
+
+/// What can shadow a sample: the depth map seen through the camera, and how noisy it is.
+#[derive(Clone, Copy)]
+struct Occluders<'a> {
+    depth: &'a Raster<f32>,
+    camera: &'a Camera,
+    /// Standard deviation of the depth map's inverse depth, 1/m (stereo noise; ~0 when exact).
+    sigma_w: f32,
+}
+
+/// How many standard deviations of depth noise a ray must pass behind the depth map to count as
+/// occluded. On a noisy floor one σ keeps 96 % of the lit floor lit (88 % without a margin) and
+/// still finds half of a box's cast shadow; two σ find 99 % and 17 %.
+const OCCLUSION_NOISE_SIGMAS: f32 = 1.0;
+
+/// Screen-space visibility from `p` (normal `n`) towards `l` up to `max_dist` metres. A ray point
+/// is occluded when it lies behind the depth map by more than 1 % + 1 cm plus the depth noise
+/// there (`σ_Z = Z²·σ_w`), within a thickness of 15 % + 5 cm.
+fn visible(occluders: &Occluders, p: Vec3, n: Vec3, l: Vec3, max_dist: f32) -> bool {
     const STEPS: usize = 40;
+    let camera = occluders.camera;
     let z0 = -p.z;
-    let origin = p + n * (0.01 * z0 + 0.005);
+    let noise = |z: f32| OCCLUSION_NOISE_SIGMAS * occluders.sigma_w * z * z;
+    let origin = p + n * (0.01 * z0 + 0.005 + noise(z0));
     let t0 = (0.01 * z0).max(0.01);
     if max_dist <= t0 {
         return true;
@@ -183,16 +208,19 @@ fn visible(depth: &Raster<f32>, camera: &Camera, p: Vec3, n: Vec3, l: Vec3, max_
         if uv.x < 0.0 || uv.y < 0.0 || uv.x >= camera.width as f32 || uv.y >= camera.height as f32 {
             return true;
         }
-        let zs = *depth.get(uv.x as usize, uv.y as usize);
-        if zs.is_finite() && zs > 0.0 && zq > zs * 1.01 + 0.01 && zq < zs * 1.15 + 0.05 {
-            return false;
+        let zs = *occluders.depth.get(uv.x as usize, uv.y as usize);
+        if zs.is_finite() && zs > 0.0 {
+            let behind = zq - zs - noise(zs);
+            if behind > zs * 0.01 + 0.01 && behind < zs * 0.15 + 0.05 {
+                return false;
+            }
         }
     }
     true
 }
 
 /// Geometric term of a light at a sample (see the module documentation).
-fn term(light: &Light, s: &Sample, depth: &Raster<f32>, camera: &Camera, reach: f32) -> f32 {
+fn term(light: &Light, s: &Sample, occluders: &Occluders, reach: f32) -> f32 {
     let (l, dist) = light.towards(s.p);
     let cos = s.n.dot(l);
     if cos <= 0.0 {
@@ -210,7 +238,7 @@ fn term(light: &Light, s: &Sample, depth: &Raster<f32>, camera: &Camera, reach: 
             (facing / (dist * dist).max(1e-4), (dist * 0.95).min(reach))
         }
     };
-    if falloff <= 0.0 || !visible(depth, camera, s.p, s.n, l, max_dist) {
+    if falloff <= 0.0 || !visible(occluders, s.p, s.n, l, max_dist) {
         return 0.0;
     }
     cos * falloff
@@ -562,8 +590,11 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         let mid = depths.len() / 2;
         2.0 * *depths.select_nth_unstable_by(mid, f32::total_cmp).1
     };
-    let depth = inputs.depth;
-    let camera = inputs.camera;
+    let occluders = Occluders {
+        depth: inputs.depth,
+        camera: inputs.camera,
+        sigma_w: depth_noise(inputs.depth),
+    };
 
     // Columns of the in-view lights (fixed positions).
     let fixed: Vec<Vec<f32>> = in_view
@@ -571,7 +602,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         .map(|l| {
             samples
                 .par_iter()
-                .map(|s| term(l, s, depth, camera, reach))
+                .map(|s| term(l, s, &occluders, reach))
                 .collect()
         })
         .collect();
@@ -637,8 +668,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
                     acc += term(
                         &Light::directional((-*d).to_array(), 0.0, [1.0; 3]),
                         s,
-                        depth,
-                        camera,
+                        &occluders,
                         reach,
                     );
                 }
@@ -859,6 +889,63 @@ mod tests {
         } else {
             None
         }
+    }
+
+    #[test]
+    fn stereo_depth_noise_does_not_shadow_a_floor_but_the_box_still_does() {
+        // The room's exact depth with correlated inverse-depth noise of σ_w = 0.01 /m (3 % of
+        // depth at 3 m, errors correlated over ~7 px, like a matcher's).
+        let to_light = Vec3::new(1.0, 0.5, 0.1).normalize();
+        let r = room(to_light, 0.2, 2.0);
+        let (w, h) = (r.depth.width(), r.depth.height());
+        let noise = crate::mesh::local_fit::tests::correlated_noise_field(w, h, 3, 0.01, 11);
+        let noisy = Raster::from_fn(w, h, |x, y| {
+            let z = *r.depth.get(x, y);
+            1.0 / (1.0 / z + noise.get(x, y))
+        });
+        let sigma_w = depth_noise(&noisy);
+        assert!((0.005..0.02).contains(&sigma_w), "measured σ_w {sigma_w}");
+        let agreement = |sigma_w: f32| {
+            let occluders = Occluders {
+                depth: &noisy,
+                camera: &r.camera,
+                sigma_w,
+            };
+            let (mut lit, mut lit_seen, mut shadowed, mut shadowed_seen) = (0, 0, 0, 0);
+            for y in (0..h).step_by(2) {
+                for x in (0..w).step_by(2) {
+                    let n = Vec3::from(*r.normals.get(x, y));
+                    let z = *noisy.get(x, y);
+                    let Some(p) = r.camera.unproject(x as f32 + 0.5, y as f32 + 0.5, z) else {
+                        continue;
+                    };
+                    if n != Vec3::Y {
+                        continue;
+                    }
+                    let visible = visible(&occluders, p, n, to_light, 6.0);
+                    if *r.shadow.get(x, y) > 0.5 {
+                        shadowed += 1;
+                        shadowed_seen += usize::from(!visible);
+                    } else {
+                        lit += 1;
+                        lit_seen += usize::from(visible);
+                    }
+                }
+            }
+            assert!(lit > 500 && shadowed > 50, "{lit} lit, {shadowed} shadowed");
+            (
+                lit_seen as f32 / lit as f32,
+                shadowed_seen as f32 / shadowed as f32,
+            )
+        };
+        // One σ of margin: 96 % of the lit floor is seen lit (88 % without the margin) and half
+        // of the box's shadow is still found (79 % without).
+        let (lit_ok, shadow_ok) = agreement(sigma_w);
+        assert!(lit_ok > 0.93, "lit floor seen lit: {lit_ok}");
+        assert!(shadow_ok > 0.45, "box shadow seen: {shadow_ok}");
+        // Without the noise margin the same floor shadows itself.
+        let (lit_without, _) = agreement(0.0);
+        assert!(lit_without < lit_ok - 0.05, "{lit_without} vs {lit_ok}");
     }
 
     fn room(to_light: Vec3, ambient: f32, irradiance: f32) -> Room {

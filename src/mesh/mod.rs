@@ -14,7 +14,7 @@
 pub mod bvh;
 pub mod export;
 pub mod grid;
-mod local_fit;
+pub(crate) mod local_fit;
 pub mod place;
 pub mod simplify;
 pub mod surfaces;
