@@ -1,5 +1,6 @@
 /* The host's lighting replaces the estimates: lights, SH9 and an environment map, with every
  * validation error named, and the values read back exactly. */
+#include <math.h>
 #include <stdlib.h>
 
 #include "check.h"
@@ -173,6 +174,31 @@ int main(void) {
     CHECK_STATUS(scene, plx_scene_sh9(scene, sh_back), PLX_STATUS_OK);
     CHECK(max_abs_diff(sh_back, sh_default, 27) == 0.0f);
 
+    plx_scene_free(scene);
+
+    /* A host with its own depth gives the photo alone: lights and the photo work on it, stereo
+     * has nothing to match and says so. */
+    CHECK_STATUS(ctx, plx_scene_new(ctx, &scene), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_set_photo(scene, NULL), PLX_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(scene, plx_scene_set_photo(scene, &l), PLX_STATUS_OK);
+    static float floor_depth[W * H];
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) /* a floor 1 m below the camera, a wall at 5 m */
+            floor_depth[y * W + x] = y > H / 2 ? fminf(100.0f / ((float)y + 0.5f - H / 2.0f), 5.0f) : 5.0f;
+    plx_camera cam = {100.0f, 100.0f, W / 2.0f, H / 2.0f};
+    CHECK_STATUS(scene, plx_scene_set_depth(scene, floor_depth, W, H, W * 4, NULL, 0, &cam),
+                 PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_sh9(scene, sh_back), PLX_STATUS_OK);
+    for (int i = 0; i < 27; i++) CHECK(sh_back[i] == sh_back[i]);
+    CHECK(sh_back[0] > 0.0f);
+    uint32_t pw = 0, ph = 0;
+    CHECK_STATUS(scene, plx_scene_photo_size(scene, &pw, &ph), PLX_STATUS_OK);
+    CHECK(pw == W && ph == H);
+    plx_float_view disparity;
+    CHECK_STATUS(scene, plx_scene_disparity(scene, &disparity), PLX_STATUS_NOT_AVAILABLE);
+    CHECK_MESSAGE(scene, "set_photo");
+    plx_image small = {left, W / 2, H, W, PLX_PIXEL_FORMAT_GRAY8};
+    CHECK_STATUS(scene, plx_scene_set_photo(scene, &small), PLX_STATUS_SIZE_MISMATCH);
     plx_scene_free(scene);
     plx_context_free(ctx);
     TEST_EXIT();

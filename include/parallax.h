@@ -675,12 +675,12 @@ enum plx_status plx_context_new(const struct plx_context_options *options,
 // `context` is NULL or a live context not used by another thread during the call.
 void plx_context_free(struct plx_context *context);
 
-// Writes the photo (the left view of the stereo pair, opaque) into the host's image `out` in
-// any `plx_pixel_format` and stride; `out` must have the photo's size. An 8-bit photo written
-// to the same 8-bit layout comes back byte for byte. This is also the composite of a scene with
-// nothing inserted. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a stereo pair;
-// `SIZE_MISMATCH` when `out` has another size; `INVALID_ARGUMENT` (unknown format, stride shorter
-// than a row). On error `out` is untouched.
+// Writes the photo (the left view of the stereo pair, or `plx_scene_set_photo`'s, opaque) into
+// the host's image `out` in any `plx_pixel_format` and stride; `out` must have the photo's size.
+// An 8-bit photo written to the same 8-bit layout comes back byte for byte. This is also the
+// composite of a scene with nothing inserted. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without
+// a photo; `SIZE_MISMATCH` when `out` has another size; `INVALID_ARGUMENT` (unknown format,
+// stride shorter than a row). On error `out` is untouched.
 //
 // # Safety
 // `scene` is a live scene; `out` points to a valid descriptor of writable memory.
@@ -688,7 +688,8 @@ enum plx_status plx_scene_photo(struct plx_scene *scene, const struct plx_image_
 
 // The photo's size in pixels (the left view of the stereo pair) into `*width` and `*height`:
 // the size every image output of the scene (`plx_scene_photo`, `plx_scene_render`) must have.
-// Cheap: decodes nothing. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a stereo pair.
+// Cheap: decodes nothing. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a photo (a stereo
+// pair or `plx_scene_set_photo`).
 //
 // # Safety
 // `scene` is a live scene; `width` and `height` are writable.
@@ -1051,6 +1052,17 @@ void plx_scene_free(struct plx_scene *scene);
 enum plx_status plx_scene_set_stereo_pair(struct plx_scene *scene,
                                           const struct plx_image *left,
                                           const struct plx_image *right);
+
+// Sets the photo alone (any `plx_pixel_format`, copied in), for a host that gives its own depth
+// (`plx_scene_set_depth`: ARCore, a depth camera) and wants lights and composites on this photo.
+// Replaces a stereo pair; stereo matching then answers `NOT_AVAILABLE`. Errors:
+// `NULL_ARGUMENT`, `INVALID_ARGUMENT` (zero size, stride shorter than a row, unknown format),
+// `SIZE_MISMATCH` (a host depth map of another size), `TOO_LARGE` (over the context's pixel
+// cap). On error the scene is unchanged.
+//
+// # Safety
+// `scene` is a live scene; `photo` points to a valid descriptor of readable memory.
+enum plx_status plx_scene_set_photo(struct plx_scene *scene, const struct plx_image *photo);
 
 // Sets the calibration of the stereo pair (used to turn disparity into metres). Errors:
 // `INVALID_ARGUMENT` for a non-finite or non-positive focal length or baseline, non-finite

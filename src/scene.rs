@@ -108,10 +108,10 @@ impl<T> Product<T> {
 /// The stereo pair as the scene received it (already validated).
 #[derive(Debug, Clone)]
 pub struct StereoPair {
-    /// Left view.
+    /// Left view: the photo.
     pub left: Image,
-    /// Right view.
-    pub right: Image,
+    /// Right view; `None` when the host gave only the photo ([`Scene::set_photo`]).
+    pub right: Option<Image>,
 }
 
 /// The stereo pair decoded into the forms the stages compute on.
@@ -121,8 +121,8 @@ pub struct LoadedPair {
     pub left_rgb: Raster<[f32; 3]>,
     /// Left view, luminance of the encoded values in [0, 1] (what stereo matching compares).
     pub left_luma: Raster<f32>,
-    /// Right view, luminance of the encoded values in [0, 1].
-    pub right_luma: Raster<f32>,
+    /// Right view, luminance of the encoded values in [0, 1]; `None` for a photo alone.
+    pub right_luma: Option<Raster<f32>>,
 }
 
 /// Stereo options as the host set them; `max_disparity: None` = choose automatically.
@@ -234,7 +234,6 @@ impl Scene {
     /// size was set ([`Scene::set_depth`]). On error the scene is unchanged.
     pub fn set_stereo_pair(&mut self, left: &ImageView, right: &ImageView) -> Result<()> {
         let limits = self.context.limits();
-        limits.check("left image", left.width() as u64, left.height() as u64)?;
         limits.check("right image", right.width() as u64, right.height() as u64)?;
         if (left.width(), left.height()) != (right.width(), right.height()) {
             return Err(Error::SizeMismatch(format!(
@@ -245,11 +244,37 @@ impl Scene {
                 right.height()
             )));
         }
+        self.set_views(left, Some(right), "left image", "the stereo pair")
+    }
+
+    /// Sets the photo alone, copying it in: for a host that gives its own depth
+    /// ([`Scene::set_depth`], e.g. from ARCore or a depth camera) and wants the lighting estimate
+    /// and composites on this photo. Stereo matching then has nothing to match and answers
+    /// `NotAvailable`; everything downstream of depth works as with a pair.
+    ///
+    /// # Errors
+    /// `InvalidArgument` for an empty image; `TooLarge` over the configured pixel cap;
+    /// `SizeMismatch` when a host depth map of another size was set. On error the scene is
+    /// unchanged.
+    pub fn set_photo(&mut self, photo: &ImageView) -> Result<()> {
+        self.set_views(photo, None, "photo", "the photo")
+    }
+
+    fn set_views(
+        &mut self,
+        left: &ImageView,
+        right: Option<&ImageView>,
+        left_name: &str,
+        what: &str,
+    ) -> Result<()> {
+        self.context
+            .limits()
+            .check(left_name, left.width() as u64, left.height() as u64)?;
         if let Some(host) = &self.host_depth.value {
             let size = (host.depth.width() as u32, host.depth.height() as u32);
             if size != (left.width(), left.height()) {
                 return Err(Error::SizeMismatch(format!(
-                    "the stereo pair is {}x{} but the host depth map is {}x{}",
+                    "{what} is {}x{} but the host depth map is {}x{}",
                     left.width(),
                     left.height(),
                     size.0,
@@ -259,7 +284,7 @@ impl Scene {
         }
         self.stereo_pair.value = Some(Arc::new(StereoPair {
             left: left.to_owned_image(),
-            right: right.to_owned_image(),
+            right: right.map(ImageView::to_owned_image),
         }));
         self.stereo_pair.version = self.bump();
         Ok(())
@@ -345,7 +370,7 @@ impl Scene {
         }
     }
 
-    /// Size of the photo (the left view), if a stereo pair was given.
+    /// Size of the photo (the left view), if a stereo pair or a photo was given.
     pub fn photo_size(&self) -> Option<(u32, u32)> {
         self.stereo_pair
             .value
@@ -356,7 +381,7 @@ impl Scene {
     /// The stereo pair decoded for the stages (product `stereo_pair`).
     ///
     /// # Errors
-    /// `NotAvailable` when no stereo pair was set.
+    /// `NotAvailable` when neither a stereo pair nor a photo was set.
     pub fn loaded_pair(&mut self) -> Result<Arc<LoadedPair>> {
         self.traced(|scene, trace| scene.loaded_pair_traced(trace))
     }
@@ -364,7 +389,7 @@ impl Scene {
     fn loaded_pair_traced(&mut self, trace: &mut Trace) -> Result<Arc<LoadedPair>> {
         let Some(pair) = &self.stereo_pair.value else {
             return Err(Error::NotAvailable(
-                "no stereo pair: set one with set_stereo_pair".into(),
+                "no photo: set a stereo pair (set_stereo_pair) or a photo (set_photo)".into(),
             ));
         };
         let versions = [self.stereo_pair.version];
@@ -373,9 +398,9 @@ impl Scene {
                 let loaded = LoadedPair {
                     left_rgb: pair.left.to_linear_rgb(),
                     left_luma: pair.left.to_luma(),
-                    right_luma: pair.right.to_luma(),
+                    right_luma: pair.right.as_ref().map(Image::to_luma),
                 };
-                if loaded.left_luma == loaded.right_luma {
+                if loaded.right_luma.as_ref() == Some(&loaded.left_luma) {
                     trace
                         .warn("the left and right images are identical: every disparity will be 0");
                 }
@@ -396,7 +421,7 @@ impl Scene {
     /// The disparity of the left view, with its confidence (product `stereo`).
     ///
     /// # Errors
-    /// `NotAvailable` without a stereo pair; `InvalidArgument` when the options do not fit the
+    /// `NotAvailable` without a stereo pair (a photo alone has nothing to match); `InvalidArgument` when the options do not fit the
     /// images (e.g. `max_disparity` ≥ width).
     pub fn disparity(&mut self) -> Result<Arc<Disparity>> {
         self.traced(|scene, trace| scene.disparity_traced(trace))
@@ -406,6 +431,13 @@ impl Scene {
         let Some(pair) = &self.stereo_pair.value else {
             return Err(Error::NotAvailable(
                 "no stereo pair: set one with set_stereo_pair".into(),
+            ));
+        };
+        let Some(right) = &pair.right else {
+            return Err(Error::NotAvailable(
+                "only a photo was given (set_photo): stereo needs the right view; give the \
+                 host's depth (set_depth) or a stereo pair (set_stereo_pair)"
+                    .into(),
             ));
         };
         let options = self.effective_stereo_options();
@@ -422,7 +454,7 @@ impl Scene {
         let disparity = self
             .disparity
             .get_or_compute("stereo", &versions, trace, |_| {
-                stereo::match_pair(&pair.left.view(), &pair.right.view(), &options)
+                stereo::match_pair(&pair.left.view(), &right.view(), &options)
             })?;
         if trace
             .stages()
@@ -566,7 +598,7 @@ mod tests {
             scene.last_trace().stage("stereo_pair").unwrap().status,
             StageStatus::Computed
         );
-        assert_eq!(third.left_luma, second.right_luma);
+        assert_eq!(Some(&third.left_luma), second.right_luma.as_ref());
     }
 
     #[test]

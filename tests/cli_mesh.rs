@@ -247,7 +247,7 @@ fn composite_without_artefacts_is_the_photo_and_runs_no_stereo_and_bad_inserts_a
 }
 
 #[test]
-fn lights_from_host_depth_are_built_around_the_named_insertion_point() {
+fn lights_and_composites_from_host_depth_and_a_photo_and_the_named_insertion_point() {
     let dir = tempfile::tempdir().unwrap();
     // The floor-and-wall depth of the surfaces test, and a photo: a bright wall over a grey floor.
     let (w, h, f) = (64usize, 48usize, 60.0f32);
@@ -307,6 +307,32 @@ fn lights_from_host_depth_are_built_around_the_named_insertion_point() {
         (sh(&default) - sh(&near_wall)).abs() > 1e-3,
         "{default} {near_wall}"
     );
+
+    // The same host depth and photo take a composite: an object on the floor, no stereo.
+    let report = run(
+        &[
+            "composite",
+            "--quiet",
+            "--depth",
+            "z.pfm",
+            "--focal",
+            "60",
+            "--image",
+            "photo.png",
+            "--insert",
+            "sphere@32,40,0.3",
+            "--out",
+            "c.png",
+            "--report",
+            "r.json",
+        ],
+        dir.path(),
+    );
+    assert_eq!(stage(&report, "stereo")["status"], "skipped");
+    assert_eq!(stage(&report, "render")["status"], "computed");
+    let composite = Image::load(dir.path().join("c.png"), &Default::default()).unwrap();
+    let photo = Image::load(dir.path().join("photo.png"), &Default::default()).unwrap();
+    assert_ne!(composite.to_linear_rgb(), photo.to_linear_rgb());
 
     let out = parallax()
         .current_dir(dir.path())

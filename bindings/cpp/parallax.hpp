@@ -315,6 +315,8 @@ public:
     void set_stereo_pair(const plx_image& left, const plx_image& right) {
         check(plx_scene_set_stereo_pair(handle_, &left, &right));
     }
+    /// The photo alone, for a host that gives its own depth (set_depth).
+    void set_photo(const plx_image& photo) { check(plx_scene_set_photo(handle_, &photo)); }
     /// Reads the pair from image files (PNG, JPEG, EXR, HDR).
     void load_stereo_pair(const std::string& left_path, const std::string& right_path) {
         check(plx_scene_load_stereo_pair(handle_, left_path.c_str(), right_path.c_str()));

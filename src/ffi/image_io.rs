@@ -128,12 +128,12 @@ fn encode(format: PixelFormat, rgba: [f32; 4], px: &mut [u8]) {
     }
 }
 
-/// Writes the photo (the left view of the stereo pair, opaque) into the host's image `out` in
-/// any `plx_pixel_format` and stride; `out` must have the photo's size. An 8-bit photo written
-/// to the same 8-bit layout comes back byte for byte. This is also the composite of a scene with
-/// nothing inserted. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a stereo pair;
-/// `SIZE_MISMATCH` when `out` has another size; `INVALID_ARGUMENT` (unknown format, stride shorter
-/// than a row). On error `out` is untouched.
+/// Writes the photo (the left view of the stereo pair, or `plx_scene_set_photo`'s, opaque) into
+/// the host's image `out` in any `plx_pixel_format` and stride; `out` must have the photo's size.
+/// An 8-bit photo written to the same 8-bit layout comes back byte for byte. This is also the
+/// composite of a scene with nothing inserted. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without
+/// a photo; `SIZE_MISMATCH` when `out` has another size; `INVALID_ARGUMENT` (unknown format,
+/// stride shorter than a row). On error `out` is untouched.
 ///
 /// # Safety
 /// `scene` is a live scene; `out` points to a valid descriptor of writable memory.
@@ -163,7 +163,8 @@ pub unsafe extern "C" fn plx_scene_photo(
 
 /// The photo's size in pixels (the left view of the stereo pair) into `*width` and `*height`:
 /// the size every image output of the scene (`plx_scene_photo`, `plx_scene_render`) must have.
-/// Cheap: decodes nothing. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a stereo pair.
+/// Cheap: decodes nothing. Errors: `NULL_ARGUMENT`; `NOT_AVAILABLE` without a photo (a stereo
+/// pair or `plx_scene_set_photo`).
 ///
 /// # Safety
 /// `scene` is a live scene; `width` and `height` are writable.
@@ -182,7 +183,8 @@ pub unsafe extern "C" fn plx_scene_photo_size(
         }
         let (w, h) = scene.photo_size().ok_or_else(|| {
             CallError::from(Error::NotAvailable(
-                "no stereo pair: set one with plx_scene_set_stereo_pair".into(),
+                "no photo: set a stereo pair (plx_scene_set_stereo_pair) or a photo (plx_scene_set_photo)"
+                .into(),
             ))
         })?;
         *width = w;

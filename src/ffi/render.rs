@@ -173,7 +173,8 @@ unsafe fn render_into(
     }
     let (w, h) = scene.photo_size().ok_or_else(|| {
         CallError::from(crate::Error::NotAvailable(
-            "no stereo pair: set one with plx_scene_set_stereo_pair".into(),
+            "no photo: set a stereo pair (plx_scene_set_stereo_pair) or a photo (plx_scene_set_photo)"
+                .into(),
         ))
     })?;
     // Check the outputs before the work, so a wrong buffer fails fast.

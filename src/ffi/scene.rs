@@ -148,6 +148,27 @@ pub unsafe extern "C" fn plx_scene_set_stereo_pair(
     })
 }
 
+/// Sets the photo alone (any `plx_pixel_format`, copied in), for a host that gives its own depth
+/// (`plx_scene_set_depth`: ARCore, a depth camera) and wants lights and composites on this photo.
+/// Replaces a stereo pair; stereo matching then answers `NOT_AVAILABLE`. Errors:
+/// `NULL_ARGUMENT`, `INVALID_ARGUMENT` (zero size, stride shorter than a row, unknown format),
+/// `SIZE_MISMATCH` (a host depth map of another size), `TOO_LARGE` (over the context's pixel
+/// cap). On error the scene is unchanged.
+///
+/// # Safety
+/// `scene` is a live scene; `photo` points to a valid descriptor of readable memory.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_set_photo(
+    scene: *mut plx_scene,
+    photo: *const plx_image,
+) -> Status {
+    with_scene(scene, |scene| {
+        let photo = view(photo, "photo")?;
+        scene.set_photo(&photo)?;
+        Ok(())
+    })
+}
+
 #[cfg(feature = "test-hooks")]
 pub(crate) unsafe fn with_scene_for_tests(scene: *mut plx_scene, body: impl FnOnce()) -> Status {
     with_scene(scene, |_| {

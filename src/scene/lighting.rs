@@ -166,7 +166,8 @@ impl Scene {
     /// light above the scene and the trace warns.
     ///
     /// # Errors
-    /// `NotAvailable` without a stereo pair (the photo) or depth; as [`Scene::depth`] and
+    /// `NotAvailable` without a photo ([`Scene::set_stereo_pair`] or [`Scene::set_photo`]) or
+    /// depth; as [`Scene::depth`] and
     /// [`estimate_lighting`].
     pub fn lighting_estimate(&mut self) -> Result<Arc<LightingEstimate>> {
         self.traced(|scene, trace| scene.lighting_estimate_traced(trace))
@@ -389,6 +390,39 @@ mod tests {
         // None of this touched the reconstruction.
         s.lighting_estimate().unwrap();
         assert_eq!(status(&s, "stereo"), Some(StageStatus::Reused));
+    }
+
+    #[test]
+    fn a_photo_with_host_depth_is_lit_without_a_stereo_pair() {
+        let mut s = Scene::new(Arc::new(Context::new(ContextOptions::default()).unwrap()));
+        let (photo, _) = shifted_pair(96, 48, 6);
+        s.set_photo(&photo.view()).unwrap();
+        let e = s.disparity().unwrap_err();
+        assert!(e.to_string().contains("set_photo"), "{e}");
+        // A floor 1 m below the camera and a wall at 5 m.
+        let camera = crate::camera::Camera::from_focal(60.0, 96, 48).unwrap();
+        let depth = crate::image::Raster::from_fn(96, 48, |_, y| {
+            let below = y as f32 + 0.5 - 24.0;
+            if below > 0.0 {
+                (60.0 / below).min(5.0)
+            } else {
+                5.0
+            }
+        });
+        s.set_depth(depth, None, Some(camera)).unwrap();
+        let estimate = s.lighting_estimate().unwrap();
+        assert_eq!(status(&s, "stereo"), Some(StageStatus::Skipped));
+        assert!(s.sh9().unwrap().to_array().iter().all(|v| v.is_finite()));
+        assert!(estimate.fit.main.validate().is_ok());
+        assert!(s
+            .last_trace()
+            .warnings()
+            .iter()
+            .all(|w| !w.contains("identical")));
+        // A photo of another size than the host depth is refused; the scene keeps its photo.
+        let (small, _) = shifted_pair(48, 48, 6);
+        assert!(s.set_photo(&small.view()).is_err());
+        assert_eq!(s.photo_size(), Some((96, 48)));
     }
 
     #[test]

@@ -20,7 +20,7 @@ impl Scene {
     /// describes). Specular image-based light comes from the SH9 and an analytic DFG fit.
     ///
     /// # Errors
-    /// `NotAvailable` without a stereo pair; `InvalidArgument` for bad options; as
+    /// `NotAvailable` without a photo (a stereo pair or [`Scene::set_photo`]); `InvalidArgument` for bad options; as
     /// [`Scene::depth`], [`Scene::lights`] and the renderer (`Gpu` without an adapter: the scene
     /// stays usable).
     pub fn render(&mut self, options: &RenderOptions) -> Result<Composite> {

@@ -74,7 +74,7 @@ int main() {
     const uint32_t w = 8, h = 4;
     parallax::Image left = parallax::Image::allocate(w, h, PLX_PIXEL_FORMAT_RGB8);
     for (size_t i = 0; i < left.pixels.size(); i++) left.pixels[i] = static_cast<uint8_t>(i * 7);
-    scene.set_stereo_pair(left.view(), left.view());
+    scene.set_photo(left.view());
     EXPECT(scene.photo_size() == std::make_pair(w, h));
     const parallax::Image photo = scene.photo(PLX_PIXEL_FORMAT_RGB8);
     EXPECT(photo.pixels == left.pixels);

@@ -594,6 +594,9 @@ namespace Parallax
         public static extern PlxStatus plx_scene_set_stereo_pair(SceneHandle scene, ref PlxImage left, ref PlxImage right);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_scene_set_photo(SceneHandle scene, ref PlxImage photo);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
         public static extern PlxStatus plx_scene_set_calibration(SceneHandle scene, ref PlxCalibration calibration);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]

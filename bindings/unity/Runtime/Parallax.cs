@@ -371,6 +371,25 @@ namespace Parallax
             }
         }
 
+        /// <summary>The photo alone (rows top first, <paramref name="stride"/> bytes apart, 0 = tightly
+        /// packed), for a host that gives its own depth (SetDepth): lights and composites use it.</summary>
+        public void SetPhoto(byte[] photo, int width, int height, PlxPixelFormat format, int stride = 0)
+        {
+            if (stride == 0)
+                stride = width * BytesPerPixel(format);
+            GCHandle p = GCHandle.Alloc(photo, GCHandleType.Pinned);
+            try
+            {
+                PlxImage pi = Image(p.AddrOfPinnedObject(), width, height, stride, format);
+                CheckLength(photo, stride, height, width, format, "photo");
+                Check(Native.plx_scene_set_photo(Handle, ref pi));
+            }
+            finally
+            {
+                p.Free();
+            }
+        }
+
         /// <summary>Reads the pair from image files (PNG, JPEG, EXR, HDR).</summary>
         public void LoadStereoPair(string leftPath, string rightPath)
         {

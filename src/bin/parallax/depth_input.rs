@@ -143,6 +143,10 @@ impl DepthInput {
                         p.height()
                     )));
                 }
+                if self.left.is_none() {
+                    // Host depth and a photo: lights and composites work on it as on a pair.
+                    scene.set_photo(&p.view())?;
+                }
             }
             Ok(Loaded { scene, photo })
         })

@@ -6,10 +6,7 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use parallax::image::{Image, Raster};
-use parallax::light::{
-    estimate_lighting, prefilter::sample_cube, Environment, EnvironmentOptions, EstimateOptions,
-    Light,
-};
+use parallax::light::{prefilter::sample_cube, Environment, EnvironmentOptions, Light};
 use parallax::mesh::UpSource;
 use parallax::trace::Trace;
 use parallax::{Error, Result};
@@ -190,33 +187,23 @@ pub fn run(args: Args) -> Result<()> {
         })?
         .to_linear_rgb();
     let spinner = args.common.spinner("estimating the lighting");
-    let depth = scene.depth();
+    if let Some(point) = args.insertion_point {
+        scene.set_insertion_point(point)?;
+    }
+    // The Scene's estimate, as a host gets it: normals snapped to the support planes, the
+    // matcher's confidence in the planes.
+    let estimate = scene.lighting_estimate();
     absorb(&mut trace, &scene);
-    let depth = depth?;
+    let estimate = estimate?;
     let camera = scene.camera();
     absorb(&mut trace, &scene);
     let camera = camera?;
     let surfaces = scene.surfaces();
     absorb(&mut trace, &scene);
     let surfaces = surfaces?;
-    let estimate = trace.time("light.estimate", "lights, shadow mask, environment", |_| {
-        estimate_lighting(
-            &photo,
-            &depth,
-            None,
-            &camera,
-            surfaces.up.to_array(),
-            args.insertion_point,
-            &EstimateOptions::default(),
-        )
-    })?;
     spinner.finish_and_clear();
     if surfaces.up_source == UpSource::CameraFallback {
         trace.warn("no near-horizontal plane found: up is the camera's +Y");
-    }
-    if estimate.fit.fallback_used {
-        trace
-            .warn("lighting could not be inferred from the photo: using one light above the scene");
     }
     let mut environment = estimate.environment.clone();
     let mut environment_source = "photo".to_string();
