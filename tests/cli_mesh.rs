@@ -53,6 +53,22 @@ fn write_pair(dir: &Path, w: u32, h: u32, shift: i64) {
     }
 }
 
+/// `z.pfm`: a floor 1 m below a camera of f = 60 px (64×48; give `--focal 60`) and a wall at 6 m.
+/// Returns the size.
+fn write_floor_and_wall(dir: &Path) -> (usize, usize) {
+    let (w, h, f) = (64usize, 48usize, 60.0f32);
+    let depth = Raster::from_fn(w, h, |_, y| {
+        let dy = -((y as f32 + 0.5) - h as f32 / 2.0) / f;
+        if dy < 0.0 {
+            (-1.0 / dy).min(6.0)
+        } else {
+            6.0
+        }
+    });
+    depth.write_pfm(dir.join("z.pfm")).unwrap();
+    (w, h)
+}
+
 /// The face count in a PLY header.
 fn ply_faces(path: &Path) -> usize {
     let ply = std::fs::read(path).unwrap();
@@ -127,17 +143,7 @@ fn mesh_from_a_stereo_pair_runs_stereo_in_the_scene() {
 #[test]
 fn surfaces_from_host_depth_skip_stereo_and_find_the_floor() {
     let dir = tempfile::tempdir().unwrap();
-    // A floor 1 m below a camera of f = 60 px (60×48, fov from --focal) and a wall at 6 m.
-    let (w, h, f) = (64usize, 48usize, 60.0f32);
-    let depth = Raster::from_fn(w, h, |_, y| {
-        let dy = -((y as f32 + 0.5) - h as f32 / 2.0) / f;
-        if dy < 0.0 {
-            (-1.0 / dy).min(6.0)
-        } else {
-            6.0
-        }
-    });
-    depth.write_pfm(dir.path().join("z.pfm")).unwrap();
+    write_floor_and_wall(dir.path());
     let report = run(
         &[
             "surfaces",
@@ -249,17 +255,8 @@ fn composite_without_artefacts_is_the_photo_and_runs_no_stereo_and_bad_inserts_a
 #[test]
 fn lights_and_composites_from_host_depth_and_a_photo_and_the_named_insertion_point() {
     let dir = tempfile::tempdir().unwrap();
-    // The floor-and-wall depth of the surfaces test, and a photo: a bright wall over a grey floor.
-    let (w, h, f) = (64usize, 48usize, 60.0f32);
-    let depth = Raster::from_fn(w, h, |_, y| {
-        let dy = -((y as f32 + 0.5) - h as f32 / 2.0) / f;
-        if dy < 0.0 {
-            (-1.0 / dy).min(6.0)
-        } else {
-            6.0
-        }
-    });
-    depth.write_pfm(dir.path().join("z.pfm")).unwrap();
+    // The floor-and-wall depth, and a photo: a bright wall over a grey floor.
+    let (w, h) = write_floor_and_wall(dir.path());
     let photo: Vec<u8> = (0..h)
         .flat_map(|y| (0..w).map(move |_| if y < h / 2 { 220 } else { 90 }))
         .collect();
@@ -267,21 +264,25 @@ fn lights_and_composites_from_host_depth_and_a_photo_and_the_named_insertion_poi
         .unwrap()
         .save_png(dir.path().join("photo.png"))
         .unwrap();
-    let lights = |point: Option<&str>| -> serde_json::Value {
+    // Every command below reads this host input.
+    let host = |command: &'static str, rest: &[&'static str]| -> Vec<&'static str> {
         let mut args = vec![
-            "lights",
-            "--quiet",
+            command,
             "--depth",
             "z.pfm",
             "--focal",
             "60",
             "--image",
             "photo.png",
-            "--out",
-            "l.json",
-            "--report",
-            "r.json",
         ];
+        args.extend_from_slice(rest);
+        args
+    };
+    let lights = |point: Option<&'static str>| -> serde_json::Value {
+        let mut args = host(
+            "lights",
+            &["--quiet", "--out", "l.json", "--report", "r.json"],
+        );
         if let Some(p) = point {
             args.extend(["--insertion-point", p]);
         }
@@ -310,22 +311,18 @@ fn lights_and_composites_from_host_depth_and_a_photo_and_the_named_insertion_poi
 
     // The same host depth and photo take a composite: an object on the floor, no stereo.
     let report = run(
-        &[
+        &host(
             "composite",
-            "--quiet",
-            "--depth",
-            "z.pfm",
-            "--focal",
-            "60",
-            "--image",
-            "photo.png",
-            "--insert",
-            "sphere@32,40,0.3",
-            "--out",
-            "c.png",
-            "--report",
-            "r.json",
-        ],
+            &[
+                "--quiet",
+                "--insert",
+                "sphere@32,40,0.3",
+                "--out",
+                "c.png",
+                "--report",
+                "r.json",
+            ],
+        ),
         dir.path(),
     );
     assert_eq!(stage(&report, "stereo")["status"], "skipped");
@@ -336,19 +333,10 @@ fn lights_and_composites_from_host_depth_and_a_photo_and_the_named_insertion_poi
 
     let out = parallax()
         .current_dir(dir.path())
-        .args([
+        .args(host(
             "lights",
-            "--depth",
-            "z.pfm",
-            "--focal",
-            "60",
-            "--image",
-            "photo.png",
-            "--out",
-            "l.json",
-            "--insertion-point",
-            "0,1",
-        ])
+            &["--out", "l.json", "--insertion-point", "0,1"],
+        ))
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
