@@ -4,10 +4,10 @@
 //! SH irradiance error at the insertion point (against a path-traced radiance probe), and the
 //! shading error of the fitted model on the photo's surfaces.
 //!
-//! The photo given to the estimator is the left view clipped to [0, 1] (an LDR photo). Depth and
-//! normals are the renderer's exact ones (`--stereo` matches the pair instead and takes normals
-//! from that depth, snapped to the detected support planes as the Scene does). Writes `lights.md`
-//! and `lights.json` to the output folder.
+//! The photo given to the estimator is the left view clipped to [0, 1] (an LDR photo). Depth,
+//! normals and up are the renderer's exact ones; `--stereo` runs the whole `Scene` instead, as a
+//! host gets it, on the pair stored as 8-bit sRGB (stereo depth, normals snapped to its support
+//! planes, its own up). Writes `lights.md` and `lights.json` to the output folder.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -21,7 +21,6 @@ use parallax::light::{
     sh9_from_cube, shadow_mask, CubeLevel, Environment, EstimateOptions, LightKind, Sh9,
     ShadowMethod, ShadowOptions, CUBE_FACES,
 };
-use parallax::mesh::{detect_surfaces_with_confidence, MeshOptions, SceneMesh, SurfaceOptions};
 use parallax::reference::{self, Images, LightRecord, RenderOptions, SampleBudget};
 use parallax::{Error, Result};
 
@@ -422,44 +421,32 @@ fn evaluate(
     let point = to_camera.transform_point3(Vec3::new(table_x, 0.77, -1.6));
     let photo = images.left.map(|c| c.map(|v| v.clamp(0.0, 1.0)));
     let start = Instant::now();
-    let (depth, normals) = if args.stereo {
+    let (depth, estimate) = if args.stereo {
+        // What a host gets: the whole Scene on the 8-bit pair (its search range from the
+        // calibration, its own up, normals snapped to its planes), around the same point.
         let pair = |r: &Raster<[f32; 3]>| {
             parallax::image::Image::from_linear_rgb(&r.map(|c| c.map(|v| v.clamp(0.0, 1.0))))
         };
         let (l, r) = (pair(&images.left), pair(&images.right));
-        let options = parallax::stereo::StereoOptions::preset(parallax::stereo::Preset::Balanced);
-        let disparity = parallax::stereo::match_pair(&l.view(), &r.view(), &options)?;
-        let depth = disparity.disparity.map(|&d| c.depth_from_disparity(d));
-        // As the Scene does: planes fitted on measured depth, normals from depth, the support
-        // planes' where they hold.
-        let surface_options = SurfaceOptions::default();
-        let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default())?;
-        let surfaces = detect_surfaces_with_confidence(
-            &mesh,
-            &camera,
-            Some(&disparity.confidence),
-            &surface_options,
-        )?;
-        let mut normals = light::normals_from_depth(&depth, &camera, 0.05)?;
-        surfaces.snap_normals(
-            &depth,
-            &camera,
-            &mut normals,
-            surface_options.membership_tolerance(),
-        );
-        (depth, Some(normals))
+        let context = parallax::context::Context::new(Default::default())?;
+        let mut scene = parallax::scene::Scene::new(std::sync::Arc::new(context));
+        scene.set_stereo_pair(&l.view(), &r.view())?;
+        scene.set_calibration(*c)?;
+        scene.set_insertion_point(point.to_array())?;
+        let estimate = scene.lighting_estimate()?;
+        ((*scene.depth()?).clone(), (*estimate).clone())
     } else {
-        (images.depth.clone(), Some(images.normals.clone()))
+        let estimate = estimate_lighting(
+            &photo,
+            &images.depth,
+            Some(&images.normals),
+            &camera,
+            to_camera.transform_vector3(Vec3::Y).normalize().to_array(),
+            Some(point.to_array()),
+            &EstimateOptions::default(),
+        )?;
+        (images.depth.clone(), estimate)
     };
-    let estimate = estimate_lighting(
-        &photo,
-        &depth,
-        normals.as_ref(),
-        &camera,
-        to_camera.transform_vector3(Vec3::Y).normalize().to_array(),
-        Some(point.to_array()),
-        &EstimateOptions::default(),
-    )?;
     let seconds = start.elapsed().as_secs_f64();
     if std::env::var("PLX_EVAL_DEBUG").is_ok() {
         eprintln!(
@@ -619,7 +606,7 @@ pub fn run(args: LightsArgs) -> Result<()> {
         args.height,
         args.spp,
         if args.stereo { " --stereo" } else { "" },
-        if args.stereo { "stereo matching, normals from depth" } else { "the renderer's exact ones" }
+        if args.stereo { "the Scene's, from the 8-bit pair" } else { "the renderer's exact ones" }
     );
     let _ = writeln!(
         md,
