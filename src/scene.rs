@@ -234,6 +234,7 @@ impl Scene {
     /// size was set ([`Scene::set_depth`]). On error the scene is unchanged.
     pub fn set_stereo_pair(&mut self, left: &ImageView, right: &ImageView) -> Result<()> {
         let limits = self.context.limits();
+        limits.check("left image", left.width() as u64, left.height() as u64)?;
         limits.check("right image", right.width() as u64, right.height() as u64)?;
         if (left.width(), left.height()) != (right.width(), right.height()) {
             return Err(Error::SizeMismatch(format!(
@@ -244,7 +245,7 @@ impl Scene {
                 right.height()
             )));
         }
-        self.set_views(left, Some(right), "left image", "the stereo pair")
+        self.set_views(left, Some(right), "the stereo pair")
     }
 
     /// Sets the photo alone, copying it in: for a host that gives its own depth
@@ -257,19 +258,14 @@ impl Scene {
     /// `SizeMismatch` when a host depth map of another size was set. On error the scene is
     /// unchanged.
     pub fn set_photo(&mut self, photo: &ImageView) -> Result<()> {
-        self.set_views(photo, None, "photo", "the photo")
-    }
-
-    fn set_views(
-        &mut self,
-        left: &ImageView,
-        right: Option<&ImageView>,
-        left_name: &str,
-        what: &str,
-    ) -> Result<()> {
         self.context
             .limits()
-            .check(left_name, left.width() as u64, left.height() as u64)?;
+            .check("photo", photo.width() as u64, photo.height() as u64)?;
+        self.set_views(photo, None, "the photo")
+    }
+
+    /// Keeps the views (already checked against the pixel cap); `what` names them in errors.
+    fn set_views(&mut self, left: &ImageView, right: Option<&ImageView>, what: &str) -> Result<()> {
         if let Some(host) = &self.host_depth.value {
             let size = (host.depth.width() as u32, host.depth.height() as u32);
             if size != (left.width(), left.height()) {
@@ -421,8 +417,8 @@ impl Scene {
     /// The disparity of the left view, with its confidence (product `stereo`).
     ///
     /// # Errors
-    /// `NotAvailable` without a stereo pair (a photo alone has nothing to match); `InvalidArgument` when the options do not fit the
-    /// images (e.g. `max_disparity` ≥ width).
+    /// `NotAvailable` without a stereo pair (a photo alone has nothing to match);
+    /// `InvalidArgument` when the options do not fit the images (e.g. `max_disparity` ≥ width).
     pub fn disparity(&mut self) -> Result<Arc<Disparity>> {
         self.traced(|scene, trace| scene.disparity_traced(trace))
     }

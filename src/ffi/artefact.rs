@@ -291,7 +291,10 @@ pub unsafe extern "C" fn plx_artefact_bounds(
 /// the artefact's transform and, when `out_transform` is not NULL, writes it there (16 floats,
 /// column-major). Needs depth (computed if needed). Errors: `NOT_AVAILABLE` without depth;
 /// `INVALID_ARGUMENT` (unknown id, an artefact without geometry, a pixel with no surface, a size
-/// that is not finite and > 0, a non-finite yaw). On error the transform is unchanged.
+/// that is not finite and > 0, a non-finite yaw). On error the transform is unchanged. The
+/// estimated lighting is built around `plx_scene_set_insertion_point`'s point, not around the
+/// artefacts: pass the placed translation (`out_transform[12..15]`) there so that the object is
+/// lit and reflects the room from where it stands.
 ///
 /// # Safety
 /// `scene` is a live scene; `out_transform` is NULL or points to 16 writable floats.

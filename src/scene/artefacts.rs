@@ -242,7 +242,9 @@ impl Scene {
 
     /// Stands an artefact on the scene surface seen at `pixel` ([`Scene::place`]) at its real
     /// size: its bounding box's bottom centre on the surface, its largest side `size_m` metres,
-    /// turned by `yaw_rad` about the up axis. Sets its transform and returns the placement.
+    /// turned by `yaw_rad` about the up axis. Sets its transform and returns the placement. The
+    /// lighting estimate is built around [`Scene::set_insertion_point`], not around the
+    /// artefacts: name the placed object's position there so that it is lit from where it stands.
     ///
     /// # Errors
     /// `InvalidArgument` for an unknown id, an artefact without geometry (empty bounds), and as

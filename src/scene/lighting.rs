@@ -167,8 +167,7 @@ impl Scene {
     ///
     /// # Errors
     /// `NotAvailable` without a photo ([`Scene::set_stereo_pair`] or [`Scene::set_photo`]) or
-    /// depth; as [`Scene::depth`] and
-    /// [`estimate_lighting`].
+    /// depth; as [`Scene::depth`] and [`estimate_lighting`].
     pub fn lighting_estimate(&mut self) -> Result<Arc<LightingEstimate>> {
         self.traced(|scene, trace| scene.lighting_estimate_traced(trace))
     }
