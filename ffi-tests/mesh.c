@@ -192,6 +192,22 @@ int main(void) {
     CHECK(up[1] > 0.99f);
     CHECK_STATUS(scene, plx_scene_surfaces(scene, NULL, &surfaces), PLX_STATUS_NULL_ARGUMENT);
 
+    /* The host's gravity (any length) wins over the planes' and reclassifies them; NULL goes
+     * back; a zero vector is refused. */
+    const float imu_up[3] = {0.0f, 2.0f, 2.0f}; /* pitched 45°: the floor is not horizontal */
+    CHECK_STATUS(scene, plx_scene_set_up(scene, imu_up), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_up(scene, up), PLX_STATUS_OK);
+    CHECK(fabsf(up[0]) < 1e-6f && fabsf(up[1] - 0.70710678f) < 1e-5f && fabsf(up[2] - 0.70710678f) < 1e-5f);
+    CHECK_STATUS(scene, plx_scene_surfaces(scene, &count, &surfaces), PLX_STATUS_OK);
+    for (size_t i = 0; i < count; i++) CHECK(surfaces[i].kind != PLX_SURFACE_KIND_HORIZONTAL);
+    const float zero[3] = {0.0f, 0.0f, 0.0f};
+    CHECK_STATUS(scene, plx_scene_set_up(scene, zero), PLX_STATUS_INVALID_ARGUMENT);
+    CHECK_MESSAGE(scene, "up must be");
+    CHECK_STATUS(scene, plx_scene_set_up(scene, NULL), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_up(scene, up), PLX_STATUS_OK);
+    CHECK(up[1] > 0.99f);
+    CHECK_STATUS(scene, plx_scene_surfaces(scene, &count, &surfaces), PLX_STATUS_OK);
+
     /* Placement on the floor: base (translation, column-major 12..14) on the floor, +Y up, scaled. */
     float m[16];
     CHECK_STATUS(scene, plx_scene_place(scene, px + 0.3f, py + 0.7f, 0.2f, 30.0f, m), PLX_STATUS_OK);

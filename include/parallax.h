@@ -945,12 +945,23 @@ enum plx_status plx_scene_surfaces(struct plx_scene *scene,
                                    size_t *count,
                                    const struct plx_surface **out);
 
-// The gravity "up" (unit vector, camera frame) into `out[0..3]`: from the largest near-horizontal
-// surfaces, else the camera's +Y. Errors as `plx_scene_surfaces`.
+// The gravity "up" (unit vector, camera frame) into `out[0..3]`: the host's
+// (`plx_scene_set_up`), else from the largest near-horizontal surfaces, else the camera's +Y.
+// Errors as `plx_scene_surfaces`.
 //
 // # Safety
 // `scene` is a live scene; `out` points to 3 writable floats.
 enum plx_status plx_scene_up(struct plx_scene *scene, float *out);
+
+// Gives gravity "up" as `up[3]` (camera frame: +X right, +Y up, −Z forward; any length), e.g.
+// the gravity vector of an IMU or an AR runtime negated: surfaces are then classified against
+// it, placed objects stand upright along it and the lighting's "above" is it. NULL = back to
+// the up estimated from the planes. Setting the up it already has changes nothing. Errors:
+// `INVALID_ARGUMENT` for a non-finite or zero vector (the scene is unchanged).
+//
+// # Safety
+// `scene` is a live scene; `up` is NULL or points to 3 readable floats.
+enum plx_status plx_scene_set_up(struct plx_scene *scene, const float *up);
 
 // Picks the scene surface seen at image position (`x`, `y`) in continuous pixels (the centre of
 // pixel (i, j) is (i + 0.5, j + 0.5)). A miss is not an error: `out->hit` is 0. Errors:

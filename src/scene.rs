@@ -165,6 +165,8 @@ pub struct Scene {
     clip: Input<(f32, f32)>,
     mesh_options: Input<crate::mesh::MeshOptions>,
     surface_options: Input<crate::mesh::SurfaceOptions>,
+    /// Gravity up from the host (an IMU), camera frame, unit.
+    host_up: Input<glam::Vec3>,
     loaded_pair: Product<LoadedPair>,
     disparity: Product<Disparity>,
     depth: Product<Raster<f32>>,
@@ -195,6 +197,7 @@ impl Scene {
             clip: Input::default(),
             mesh_options: Input::default(),
             surface_options: Input::default(),
+            host_up: Input::default(),
             loaded_pair: Product::default(),
             disparity: Product::default(),
             depth: Product::default(),

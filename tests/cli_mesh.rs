@@ -179,6 +179,28 @@ fn surfaces_from_host_depth_skip_stereo_and_find_the_floor() {
         "{floor}"
     );
     assert!(found["up"][1].as_f64().unwrap() > 0.99);
+    assert_eq!(found["up_source"], "planes");
+
+    // An IMU's up (pitched 45°) replaces the planes'; the floor is then not horizontal.
+    run(
+        &[
+            "surfaces", "--quiet", "--depth", "z.pfm", "--focal", "60", "--up", "0,2,-2", "--out",
+            "s.json", "--report", "r.json",
+        ],
+        dir.path(),
+    );
+    let found: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("s.json")).unwrap()).unwrap();
+    assert_eq!(found["up_source"], "host");
+    assert!(
+        (found["up"][2].as_f64().unwrap() + std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-3,
+        "{found}"
+    );
+    assert!(found["surfaces"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|s| s["kind"] != "horizontal"));
 
     // The same depth as a mesh (GLB), host path again.
     let report = run(

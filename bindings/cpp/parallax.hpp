@@ -402,6 +402,10 @@ public:
         check(plx_scene_up(handle_, v.data()));
         return v;
     }
+    /// The host's gravity up (e.g. from an IMU), camera frame, any length.
+    void set_up(const Vec3& up) { check(plx_scene_set_up(handle_, up.data())); }
+    /// Back to the up estimated from the planes.
+    void reset_up() { check(plx_scene_set_up(handle_, nullptr)); }
     plx_hit pick(float x, float y) {
         plx_hit h{};
         check(plx_scene_pick(handle_, x, y, &h));

@@ -557,6 +557,9 @@ namespace Parallax
         public static extern PlxStatus plx_scene_up(SceneHandle scene, [Out] float[] output);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
+        public static extern PlxStatus plx_scene_set_up(SceneHandle scene, float[] up);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]
         public static extern PlxStatus plx_scene_pick(SceneHandle scene, float x, float y, out PlxHit output);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl)]

@@ -567,6 +567,15 @@ namespace Parallax
             return v;
         }
 
+        /// <summary>The host's gravity up (3 floats in Parallax's camera frame: +X right, +Y up,
+        /// -Z forward; any length), e.g. an IMU's gravity negated. null = back to the estimate.</summary>
+        public void SetUp(float[] up)
+        {
+            if (up != null && up.Length != 3)
+                throw new ArgumentException("up takes 3 floats");
+            Check(Native.plx_scene_set_up(Handle, up));
+        }
+
         public PlxHit Pick(float x, float y)
         {
             PlxHit h;

@@ -101,8 +101,9 @@ pub unsafe extern "C" fn plx_scene_surfaces(
     })
 }
 
-/// The gravity "up" (unit vector, camera frame) into `out[0..3]`: from the largest near-horizontal
-/// surfaces, else the camera's +Y. Errors as `plx_scene_surfaces`.
+/// The gravity "up" (unit vector, camera frame) into `out[0..3]`: the host's
+/// (`plx_scene_set_up`), else from the largest near-horizontal surfaces, else the camera's +Y.
+/// Errors as `plx_scene_surfaces`.
 ///
 /// # Safety
 /// `scene` is a live scene; `out` points to 3 writable floats.
@@ -114,6 +115,28 @@ pub unsafe extern "C" fn plx_scene_up(scene: *mut plx_scene, out: *mut f32) -> S
         }
         let up = scene.surfaces()?.up;
         std::ptr::copy_nonoverlapping(up.to_array().as_ptr(), out, 3);
+        Ok(())
+    })
+}
+
+/// Gives gravity "up" as `up[3]` (camera frame: +X right, +Y up, −Z forward; any length), e.g.
+/// the gravity vector of an IMU or an AR runtime negated: surfaces are then classified against
+/// it, placed objects stand upright along it and the lighting's "above" is it. NULL = back to
+/// the up estimated from the planes. Setting the up it already has changes nothing. Errors:
+/// `INVALID_ARGUMENT` for a non-finite or zero vector (the scene is unchanged).
+///
+/// # Safety
+/// `scene` is a live scene; `up` is NULL or points to 3 readable floats.
+#[no_mangle]
+pub unsafe extern "C" fn plx_scene_set_up(scene: *mut plx_scene, up: *const f32) -> Status {
+    with_scene(scene, |scene| {
+        if up.is_null() {
+            scene.clear_up();
+            return Ok(());
+        }
+        let mut xyz = [0.0f32; 3];
+        xyz.copy_from_slice(std::slice::from_raw_parts(up, 3));
+        scene.set_up(xyz)?;
         Ok(())
     })
 }

@@ -140,6 +140,8 @@ pub enum UpSource {
     Planes,
     /// No near-horizontal plane: the camera's +Y.
     CameraFallback,
+    /// Given by the host (gravity from an IMU or an AR runtime: [`Surfaces::with_host_up`]).
+    Host,
 }
 
 /// A planar surface of the scene.
@@ -194,8 +196,54 @@ pub struct Surfaces {
     pub surfaces: Vec<SupportSurface>,
     /// Unit up vector in the camera (= world) frame.
     pub up: Vec3,
-    /// Whether `up` came from planes or is the camera fallback.
+    /// Whether `up` came from planes, from the host, or is the camera fallback.
     pub up_source: UpSource,
+}
+
+impl SurfaceKind {
+    /// The kind of a plane with unit `normal` (facing the camera) under gravity `up`: within 10°
+    /// of up, of down, or of perpendicular to up, else slanted.
+    pub fn relative_to(normal: Vec3, up: Vec3) -> SurfaceKind {
+        let c = normal.dot(up);
+        let (sin10, cos10) = 10f32.to_radians().sin_cos();
+        if c >= cos10 {
+            SurfaceKind::Horizontal
+        } else if c <= -cos10 {
+            SurfaceKind::Overhead
+        } else if c.abs() <= sin10 {
+            SurfaceKind::Vertical
+        } else {
+            SurfaceKind::Slanted
+        }
+    }
+}
+
+impl Surfaces {
+    /// The same planes under the host's gravity `up` (camera frame; normalised here): an IMU or an
+    /// AR runtime knows it far better than the planes of a noisy depth map do. Each surface's kind
+    /// is re-derived from it; `up_source` becomes [`UpSource::Host`].
+    ///
+    /// # Errors
+    /// `InvalidArgument` when `up` is not finite or has zero length.
+    pub fn with_host_up(mut self, up: Vec3) -> Result<Surfaces> {
+        let up = validated_up(up)?;
+        for s in &mut self.surfaces {
+            s.kind = SurfaceKind::relative_to(s.normal, up);
+        }
+        self.up = up;
+        self.up_source = UpSource::Host;
+        Ok(self)
+    }
+}
+
+/// `up` normalised, or `InvalidArgument` when it is not finite or (nearly) zero.
+pub(crate) fn validated_up(up: Vec3) -> Result<Vec3> {
+    match up.try_normalize() {
+        Some(u) if up.is_finite() && up.length() > 1e-6 => Ok(u),
+        _ => Err(Error::invalid(format!(
+            "up must be a finite non-zero vector, got {up}"
+        ))),
+    }
 }
 
 impl Surfaces {
@@ -822,18 +870,7 @@ fn describe(
         .iter()
         .filter_map(|p| camera.project(*p).map(|(px, _)| px))
         .collect();
-    let c = n.dot(up);
-    let sin10 = 10f32.to_radians().sin();
-    let cos10 = 10f32.to_radians().cos();
-    let kind = if c >= cos10 {
-        SurfaceKind::Horizontal
-    } else if c <= -cos10 {
-        SurfaceKind::Overhead
-    } else if c.abs() <= sin10 {
-        SurfaceKind::Vertical
-    } else {
-        SurfaceKind::Slanted
-    };
+    let kind = SurfaceKind::relative_to(n, up);
     SupportSurface {
         normal: n,
         centroid,

@@ -161,6 +161,30 @@ impl Scene {
         Ok(())
     }
 
+    /// Gives gravity "up" (camera frame, any length): from an IMU or an AR runtime, which know it
+    /// far better than the planes of a noisy depth map. Surfaces are then classified against it,
+    /// objects stand upright along it and the lighting's "above" is it ([`Surfaces::with_host_up`]);
+    /// the planes themselves are still found in the depth. Setting the up it already has changes
+    /// nothing.
+    ///
+    /// # Errors
+    /// `InvalidArgument` when `up` is not finite or has zero length; the scene is unchanged.
+    pub fn set_up(&mut self, up: [f32; 3]) -> Result<()> {
+        let up = crate::mesh::surfaces::validated_up(glam::Vec3::from(up))?;
+        if self.host_up.value != Some(up) {
+            self.host_up.value = Some(up);
+            self.host_up.version = self.bump();
+        }
+        Ok(())
+    }
+
+    /// Back to the up estimated from the planes.
+    pub fn clear_up(&mut self) {
+        if self.host_up.value.take().is_some() {
+            self.host_up.version = self.bump();
+        }
+    }
+
     /// The intrinsics (default clip range) of a `width × height` depth map: the host's camera,
     /// else the calibration's, else the assumed field of view.
     fn intrinsics(&self, width: u32, height: u32, trace: &mut Trace) -> Result<Camera> {
@@ -387,8 +411,10 @@ impl Scene {
             },
             self.intrinsics_version(),
             self.surface_options.version,
+            self.host_up.version,
         ];
         let options = self.surface_options.value.unwrap_or_default();
+        let host_up = self.host_up.value;
         let empty = SceneMesh::default();
         let mesh = grid.as_deref().unwrap_or(&empty);
         // The confidence that came with the depth (the host's, or the matcher's: 0 on the holes
@@ -403,7 +429,11 @@ impl Scene {
             .or(stereo.as_deref().map(|d| &d.confidence));
         self.surfaces
             .get_or_compute("surfaces", &versions, trace, |_| {
-                detect_surfaces_with_confidence(mesh, &camera, confidence, &options)
+                let found = detect_surfaces_with_confidence(mesh, &camera, confidence, &options)?;
+                match host_up {
+                    Some(up) => found.with_host_up(up),
+                    None => Ok(found),
+                }
             })
     }
 

@@ -82,3 +82,15 @@ pub fn stereo_options(
         None => base.with_json(spec),
     }
 }
+
+/// `X,Y,Z`: three finite numbers (a clap value parser).
+pub fn parse_vec3(text: &str) -> std::result::Result<[f32; 3], String> {
+    let values: Vec<f32> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f32>().map_err(|e| format!("{v:?}: {e}")))
+        .collect::<std::result::Result<_, _>>()?;
+    match values[..] {
+        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok([x, y, z]),
+        _ => Err(format!("expected three finite numbers X,Y,Z, got {text:?}")),
+    }
+}

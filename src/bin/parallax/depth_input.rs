@@ -59,6 +59,12 @@ pub struct DepthInput {
     /// --left; must have the depth's size.
     #[arg(long, value_name = "IMAGE")]
     pub image: Option<PathBuf>,
+    /// Gravity up, `X,Y,Z` in the left camera's frame (+Y up, −Z forward; any length), e.g. from
+    /// an IMU: surfaces are classified against it and objects stand upright along it. Default:
+    /// estimated from the near-horizontal planes.
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::common::parse_vec3,
+          allow_hyphen_values = true)]
+    pub up: Option<[f32; 3]>,
 }
 
 /// The scene built from the command line, and the photo when there is one.
@@ -147,6 +153,11 @@ impl DepthInput {
                     // Host depth and a photo: lights and composites work on it as on a pair.
                     scene.set_photo(&p.view())?;
                 }
+            }
+            if let Some(up) = self.up {
+                scene
+                    .set_up(up)
+                    .map_err(|e| Error::invalid(format!("--up: {e}")))?;
             }
             Ok(Loaded { scene, photo })
         })

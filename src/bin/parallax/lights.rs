@@ -36,7 +36,7 @@ pub struct Args {
     /// Where objects will go, `X,Y,Z` in the left camera's frame (metres, +Y up, −Z forward): the
     /// environment and SH9 are built around it. Default: the median point of the up-facing
     /// surfaces, 2 cm above them.
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true)]
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::common::parse_vec3, allow_hyphen_values = true)]
     insertion_point: Option<[f32; 3]>,
     #[command(flatten)]
     common: CommonArgs,
@@ -56,18 +56,6 @@ struct Output<'a> {
     sh9_convention: &'static str,
     environment_seen_fraction: f32,
     environment_source: String,
-}
-
-/// `X,Y,Z`: three finite numbers.
-fn parse_point(text: &str) -> std::result::Result<[f32; 3], String> {
-    let values: Vec<f32> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f32>().map_err(|e| format!("{v:?}: {e}")))
-        .collect::<std::result::Result<_, _>>()?;
-    match values[..] {
-        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok([x, y, z]),
-        _ => Err(format!("expected three finite numbers X,Y,Z, got {text:?}")),
-    }
 }
 
 /// Equirect (the reference's layout) of a cube's first level.

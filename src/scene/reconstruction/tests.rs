@@ -318,3 +318,49 @@ fn stereo_feeds_the_mesh_and_mesh_options_do_not_rematch() {
     assert_eq!(status(&s, "stereo"), StageStatus::Reused);
     assert_eq!(status(&s, "depth"), StageStatus::Computed);
 }
+
+#[test]
+fn the_hosts_gravity_up_classifies_surfaces_and_stands_objects_along_it() {
+    let mut s = scene();
+    s.set_depth(room(), None, Some(camera())).unwrap();
+    assert_eq!(s.surfaces().unwrap().up_source, UpSource::Planes);
+    // An IMU that says the camera is rolled 20°: the floor is no longer horizontal under it.
+    let tilted = Vec3::new(20f32.to_radians().sin(), 20f32.to_radians().cos(), 0.0);
+    s.set_up((tilted * 3.0).to_array()).unwrap();
+    let surfaces = s.surfaces().unwrap();
+    assert_eq!(status(&s, "surfaces"), StageStatus::Computed);
+    assert_eq!(status(&s, "mesh.grid"), StageStatus::Reused);
+    assert_eq!(surfaces.up_source, UpSource::Host);
+    assert!(surfaces.up.angle_between(tilted) < 1e-5, "{}", surfaces.up);
+    let floor = surfaces
+        .surfaces
+        .iter()
+        .find(|p| (p.offset - FLOOR_Y).abs() < 0.02)
+        .expect("the floor is still found");
+    assert_eq!(floor.kind, SurfaceKind::Slanted);
+    let placed = s
+        .place(
+            Vec2::new(40.5, 50.5),
+            0.3,
+            0.0,
+            &PlaceOptions {
+                orientation: crate::mesh::Orientation::Gravity,
+                ..PlaceOptions::default()
+            },
+        )
+        .unwrap();
+    assert!(placed.up.angle_between(tilted) < 1e-4, "{}", placed.up);
+    // The same up again changes nothing; a zero or NaN up is refused and changes nothing.
+    s.set_up((tilted * 3.0).to_array()).unwrap();
+    s.surfaces().unwrap();
+    assert_eq!(status(&s, "surfaces"), StageStatus::Reused);
+    for bad in [[0.0; 3], [f32::NAN, 1.0, 0.0]] {
+        let e = s.set_up(bad).unwrap_err();
+        assert!(e.to_string().contains("up must be"), "{e}");
+    }
+    assert_eq!(s.surfaces().unwrap().up_source, UpSource::Host);
+    s.clear_up();
+    let surfaces = s.surfaces().unwrap();
+    assert_eq!(surfaces.up_source, UpSource::Planes);
+    assert!(surfaces.up.angle_between(Vec3::Y).to_degrees() < 3.0);
+}
