@@ -441,6 +441,16 @@ mod tests {
         let e = s.set_insertion_point([0.0, f32::NAN, -1.0]).unwrap_err();
         assert!(e.to_string().contains("insertion point"), "{e}");
         assert!(Arc::ptr_eq(&moved, &s.lighting_estimate().unwrap()));
+        // Extreme but legal points (far outside the room, at the camera) give a finite answer.
+        for far in [[1e30, -1e30, 1e30], [0.0; 3], [f32::MAX, 0.0, -f32::MAX]] {
+            s.set_insertion_point(far).unwrap();
+            let e = s.lighting_estimate().unwrap();
+            assert!(
+                e.environment.sh9.to_array().iter().all(|v| v.is_finite()),
+                "{far:?}"
+            );
+            assert!(e.fit.main.validate().is_ok(), "{far:?}");
+        }
         s.clear_insertion_point();
         assert_eq!(
             s.lighting_estimate().unwrap().insertion_point,
