@@ -67,6 +67,8 @@ int main(int argc, char **argv) {
     TRY(scene, plx_scene_add_artefact_path(scene, argv[3], NULL, &id));
     float transform[16];
     TRY(scene, plx_scene_place_artefact(scene, id, x, y, 0.3f, 30.0f, transform));
+    /* The room's light is estimated around the object: it is lit from where it stands. */
+    TRY(scene, plx_scene_set_insertion_point(scene, &transform[12]));
     printf("artefact_position=%.4f,%.4f,%.4f\n", transform[12], transform[13], transform[14]);
 
     /* The composite as RGB8 and the coverage as GRAY8, in host buffers. */

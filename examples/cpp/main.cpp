@@ -88,6 +88,8 @@ int main(int argc, char** argv) {
                     hit.point[2]);
         const parallax::Scene::ArtefactId id = scene.add_artefact(argv[3]);
         const parallax::Matrix4 m = scene.place_artefact(id, px, py, 0.3f, 30.0f);
+        // The room's light is estimated around the object: it is lit from where it stands.
+        scene.set_insertion_point({m[12], m[13], m[14]});
         const parallax::Bounds b = scene.artefact_bounds(id);
         // The model's base centre and top centre in the world (column-major model → world).
         auto world = [&](float x, float y, float z) {

@@ -101,10 +101,13 @@ pub fn run(args: Args) -> Result<()> {
             .map(|(pixel, _)| pixel)
             .ok_or_else(|| Error::Internal(format!("demo point {world:?} is behind the camera")))
     };
-    for (what, at, size_m, yaw_deg) in [
+    for (i, (what, at, size_m, yaw_deg)) in [
         ("metal-sphere", SPHERE_ON_TABLE, SPHERE_SIZE_M, 0.0),
         ("box", BOX_BESIDE_TABLE, BOX_SIZE_M, BOX_YAW_DEG),
-    ] {
+    ]
+    .into_iter()
+    .enumerate()
+    {
         let id = scene.add_artefact_bytes(&builtin_glb(what)?, Mat4::IDENTITY)?;
         let local = scene.artefact_bounds(id)?.local;
         // Upright along the estimated gravity: stereo vertex normals are too noisy to stand a
@@ -116,7 +119,12 @@ pub fn run(args: Args) -> Result<()> {
         };
         let placed = scene.place(pixel_of(at)?, size_m, yaw_deg.to_radians(), &options);
         absorb(&mut trace, &scene);
-        scene.set_artefact_transform(id, placed?.transform)?;
+        let placed = placed?;
+        scene.set_artefact_transform(id, placed.transform)?;
+        if i == 0 {
+            // The room's light is estimated around the sphere on the table, where it will be seen.
+            scene.set_insertion_point(placed.transform.w_axis.truncate().to_array())?;
+        }
     }
 
     let composite = scene.render(&RenderOptions::default());
