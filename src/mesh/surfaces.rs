@@ -218,6 +218,16 @@ impl SurfaceKind {
     }
 }
 
+/// `up` normalised, or `InvalidArgument` when it is not finite or (nearly) zero.
+pub(crate) fn validated_up(up: Vec3) -> Result<Vec3> {
+    match up.try_normalize() {
+        Some(u) if up.is_finite() && up.length() > 1e-6 => Ok(u),
+        _ => Err(Error::invalid(format!(
+            "up must be a finite non-zero vector, got {up}"
+        ))),
+    }
+}
+
 impl Surfaces {
     /// The same planes under the host's gravity `up` (camera frame; normalised here): an IMU or an
     /// AR runtime knows it far better than the planes of a noisy depth map do. Each surface's kind
@@ -234,19 +244,7 @@ impl Surfaces {
         self.up_source = UpSource::Host;
         Ok(self)
     }
-}
 
-/// `up` normalised, or `InvalidArgument` when it is not finite or (nearly) zero.
-pub(crate) fn validated_up(up: Vec3) -> Result<Vec3> {
-    match up.try_normalize() {
-        Some(u) if up.is_finite() && up.length() > 1e-6 => Ok(u),
-        _ => Err(Error::invalid(format!(
-            "up must be a finite non-zero vector, got {up}"
-        ))),
-    }
-}
-
-impl Surfaces {
     /// The first (largest) surface that holds the point seen at `pixel` (continuous pixels): the
     /// point lies within `tolerance` × its depth of the plane and the pixel inside the surface's
     /// image polygon.
