@@ -1292,6 +1292,7 @@ fn unity_compositor_fills_the_output_texture_the_right_way_up() {
     assert_eq!(v["output_size"], format!("{w}x{h}"));
     assert_eq!(v["applied"], "2");
     assert_eq!(v["errors_logged"], "0", "{stderr}");
+    assert_eq!(v["gravity_composed"], "1");
     assert_eq!(v["missing_model_composed"], "0");
     assert_eq!(v["errors_logged_after"], "1");
     assert!(

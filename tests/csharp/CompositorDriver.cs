@@ -59,6 +59,9 @@ static class CompositorDriver
         Console.WriteLine("output_size=" + compositor.output.width + "x" + compositor.output.height);
         Console.WriteLine("applied=" + compositor.output.applied);
         Console.WriteLine("errors_logged=" + UnityEngine.Debug.errors);
+        // The device's gravity (level camera) replaces the planes' up.
+        compositor.gravityUp = new Vector3(0, 1, 0);
+        Console.WriteLine("gravity_composed=" + (compositor.Compose() ? 1 : 0));
         // A missing model is logged with its status, and Compose reports failure.
         p.gltfPath = Path.Combine(Path.GetDirectoryName(a[9]), "missing.glb");
         Console.WriteLine("missing_model_composed=" + (compositor.Compose() ? 1 : 0));

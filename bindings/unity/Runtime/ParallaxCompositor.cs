@@ -46,6 +46,9 @@ namespace Parallax
         public float baselineM = 0.1f;
         /// <summary>The objects and their placements.</summary>
         public List<ArtefactPlacement> artefacts = new List<ArtefactPlacement>();
+        /// <summary>Gravity "up" in the left camera's Unity frame (x right, y up, z forward), e.g.
+        /// from the device's IMU; zero = estimate it from the photo's planes.</summary>
+        public Vector3 gravityUp;
         /// <summary>Receives the composite; created (RGBA32, sRGB) when null or of another size.</summary>
         public Texture2D output;
         /// <summary>Run Compose() in Start.</summary>
@@ -132,6 +135,10 @@ namespace Parallax
                     sentFocal = focalPx;
                     sentBaseline = baselineM;
                 }
+                // Unity's camera looks along +z, Parallax's along -z.
+                scene.SetUp(gravityUp.x == 0 && gravityUp.y == 0 && gravityUp.z == 0
+                                ? null
+                                : new float[] { gravityUp.x, gravityUp.y, -gravityUp.z });
                 foreach (uint id in ids)
                     scene.RemoveArtefact(id);
                 ids.Clear();
