@@ -612,7 +612,8 @@ fn placement_prefers_the_plane_whose_extent_holds_the_hit() {
     let spot = room.to_camera * Vec3::new(1.0, FLOOR_Y, -2.0);
     let pixel = room.camera.project(spot).unwrap().0;
     // The detected floor 1 cm off the hit (as stereo planes are), the patch's plane through it.
-    let hit = pick(&Bvh::new(&mesh), &room.camera, pixel).unwrap();
+    let bvh = Bvh::new(&mesh);
+    let hit = pick(&bvh, &room.camera, pixel).unwrap();
     surfaces.surfaces[floor].offset += 0.01;
     let mut patch = surfaces.surfaces[floor].clone();
     patch.normal = (glam::Quat::from_rotation_x(4f32.to_radians()) * patch.normal).normalize();
@@ -623,7 +624,7 @@ fn placement_prefers_the_plane_whose_extent_holds_the_hit() {
     assert!(patch.distance(hit.point).abs() < surfaces.surfaces[floor].distance(hit.point).abs());
     surfaces.surfaces.push(patch);
     let p = place(
-        &Bvh::new(&mesh),
+        &bvh,
         &room.camera,
         &surfaces,
         pixel,

@@ -28,6 +28,15 @@ pub(crate) fn null_argument(name: &str) -> CallError {
     }
 }
 
+/// The `N` floats at `p`, or `None` for NULL: the setters whose NULL means "back to the
+/// estimate" (SH9, insertion point, up).
+///
+/// # Safety
+/// `p` is NULL or points to `N` readable floats (any alignment).
+pub(crate) unsafe fn optional_floats<const N: usize>(p: *const f32) -> Option<[f32; N]> {
+    (!p.is_null()).then(|| std::ptr::read_unaligned(p.cast::<[f32; N]>()))
+}
+
 /// `INVALID_ARGUMENT` with a message.
 pub(crate) fn invalid(message: impl Into<String>) -> CallError {
     CallError {

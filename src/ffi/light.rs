@@ -1,7 +1,7 @@
 //! Lighting through the C ABI: the host's lights, ambient SH9 and environment map replacing the
 //! estimates.
 
-use super::boundary::{invalid, null_argument, CallError};
+use super::boundary::{invalid, null_argument, optional_floats, CallError};
 use super::image::{plx_image, view};
 use super::image_io::{plx_image_out, write_linear};
 use super::scene::{plx_scene, with_scene};
@@ -146,13 +146,10 @@ pub unsafe extern "C" fn plx_scene_reset_lights(scene: *mut plx_scene) -> Status
 #[no_mangle]
 pub unsafe extern "C" fn plx_scene_set_sh9(scene: *mut plx_scene, sh9: *const f32) -> Status {
     with_scene(scene, |scene| {
-        if sh9.is_null() {
-            scene.clear_sh9();
-            return Ok(());
+        match optional_floats::<27>(sh9) {
+            Some(values) => scene.set_sh9(Sh9::from_array(&values)?)?,
+            None => scene.clear_sh9(),
         }
-        let mut values = [0.0f32; 27];
-        values.copy_from_slice(std::slice::from_raw_parts(sh9, 27));
-        scene.set_sh9(Sh9::from_array(&values)?)?;
         Ok(())
     })
 }
@@ -172,13 +169,10 @@ pub unsafe extern "C" fn plx_scene_set_insertion_point(
     point: *const f32,
 ) -> Status {
     with_scene(scene, |scene| {
-        if point.is_null() {
-            scene.clear_insertion_point();
-            return Ok(());
+        match optional_floats::<3>(point) {
+            Some(xyz) => scene.set_insertion_point(xyz)?,
+            None => scene.clear_insertion_point(),
         }
-        let mut xyz = [0.0f32; 3];
-        xyz.copy_from_slice(std::slice::from_raw_parts(point, 3));
-        scene.set_insertion_point(xyz)?;
         Ok(())
     })
 }

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 
-use super::boundary::{invalid, null_argument};
+use super::boundary::{invalid, null_argument, optional_floats};
 use super::scene::{plx_scene, with_scene, with_scene_state};
 use crate::error::Status;
 use crate::mesh::{PlaceOptions, Ray, SupportSurface, SurfaceKind};
@@ -130,13 +130,10 @@ pub unsafe extern "C" fn plx_scene_up(scene: *mut plx_scene, out: *mut f32) -> S
 #[no_mangle]
 pub unsafe extern "C" fn plx_scene_set_up(scene: *mut plx_scene, up: *const f32) -> Status {
     with_scene(scene, |scene| {
-        if up.is_null() {
-            scene.clear_up();
-            return Ok(());
+        match optional_floats::<3>(up) {
+            Some(xyz) => scene.set_up(xyz)?,
+            None => scene.clear_up(),
         }
-        let mut xyz = [0.0f32; 3];
-        xyz.copy_from_slice(std::slice::from_raw_parts(up, 3));
-        scene.set_up(xyz)?;
         Ok(())
     })
 }
