@@ -247,6 +247,8 @@ fn eval_composite_measures_both_input_kinds_and_writes_table_json_and_plot() {
             "4",
             "--configs",
             "quick",
+            "--max-triangles",
+            "300",
             "--out",
             "ev",
         ],
@@ -271,8 +273,23 @@ fn eval_composite_measures_both_input_kinds_and_writes_table_json_and_plot() {
         }
     }
     assert!(report["scenes"][0]["reference_seconds"].as_f64().unwrap() > 0.0);
+    // The full grid and the one budget asked for, the budget's mesh within it and far smaller.
+    let budgets = report["budgets"].as_array().unwrap();
+    assert_eq!(budgets.len(), 2, "{budgets:?}");
+    assert!(budgets[0]["max_triangles"].is_null());
+    assert_eq!(budgets[1]["max_triangles"], 300);
+    let triangles = |b: &serde_json::Value| b["triangles"].as_u64().unwrap();
+    assert!(triangles(&budgets[1]) <= 300 && triangles(&budgets[0]) > 10 * 300);
+    for b in budgets {
+        let psnr = b["errors"]["image"]["psnr"].as_f64().unwrap();
+        assert!(psnr.is_finite() && psnr > 10.0, "{b}");
+    }
     let md = std::fs::read_to_string(ev.join("composite.md")).unwrap();
     assert!(md.contains("| true | pbr esm 1024 r2 |") && md.contains("| estimated |"));
+    assert!(
+        md.contains("| full grid |") && md.contains("| 300 |"),
+        "{md}"
+    );
     let plot = load(&ev.join("composite_error_vs_time.png"));
     assert_eq!((plot.width(), plot.height()), (640, 480));
     assert!(ev.join("room_truth.png").is_file() && ev.join("room_estimated.png").is_file());

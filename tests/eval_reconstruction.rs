@@ -3,11 +3,12 @@
 
 use std::process::Command;
 
-const COLUMNS: [&str; 11] = [
+const COLUMNS: [&str; 12] = [
     "scene",
     "depth rel. err. median / p90",
     "mesh rel. err. median / p90",
     "mesh coverage",
+    "normal err. median / p90, all pixels (°)",
     "floor normal err. median (°)",
     "table normal err. median (°)",
     "floor plane normal err. (°)",
@@ -47,7 +48,7 @@ fn room_at_tiny_size_gives_the_table_and_finite_figures() {
     .unwrap();
     let r = &json[0];
     assert_eq!(r["scene"], "room");
-    for key in ["depth_error", "mesh_error"] {
+    for key in ["depth_error", "mesh_error", "normal_error_deg"] {
         let (m, p) = (
             r[key]["median"].as_f64().unwrap(),
             r[key]["p90"].as_f64().unwrap(),

@@ -1,8 +1,9 @@
 //! The interface between matching costs and aggregation: one image row of costs at a time.
 //!
 //! Costs are `u8` on a 0–255 scale so that aggregation runs on `u16` lanes. They are computed row
-//! by row on demand instead of being stored as a volume: the aggregated volume (2 bytes per pixel
-//! and disparity) is then the only volume in memory.
+//! by row on demand; aggregation stores them as a volume (1 byte per pixel and disparity, next to
+//! its own 2) only when the search window is narrow, so that a full search keeps the aggregated
+//! volume as the only one in memory.
 
 /// Cost of a left pixel whose candidate match lies left of the right image's first column.
 /// A constant lets the smoothness term decide there, which the L/R check later flags anyway.

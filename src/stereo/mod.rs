@@ -238,8 +238,20 @@ pub(crate) fn match_grey(
                 4
             };
             let pen = sgm::Penalties::new(o.p1, o.p2, o.p2_gradient_scale, paths);
+            // A window narrow enough that `S` (2 bytes a disparity) and a stored cost volume
+            // (1 byte) stay within the 2 bytes per pixel and disparity of the whole range that
+            // the matcher's memory bound allows: both sweeps then read costs computed once.
+            let store_costs = 3 * k <= 2 * levels;
             let agg = stats.time("stereo.aggregate", || {
-                sgm::aggregate(cost.as_ref(), l, bases.as_deref(), k, paths, &pen)
+                sgm::aggregate(
+                    cost.as_ref(),
+                    l,
+                    bases.as_deref(),
+                    k,
+                    paths,
+                    &pen,
+                    store_costs,
+                )
             });
             let opts = DecideOptions {
                 subpixel: o.subpixel,
@@ -247,8 +259,10 @@ pub(crate) fn match_grey(
                 lr_max_diff: o.lr_max_diff,
                 confidence_unit: pen.p1 as f32,
             };
-            let peak =
-                fixed + sgm::working_bytes(w, h, k) + 9 * n + 12 * w * rayon::current_num_threads();
+            let peak = fixed
+                + sgm::working_bytes(w, h, k, store_costs)
+                + 9 * n
+                + 12 * w * rayon::current_num_threads();
             stats.peak_working_bytes = stats.peak_working_bytes.max(peak as u64);
             stats.time("stereo.decide", || {
                 refine::decide(&agg, bases.as_deref(), &opts)

@@ -4,9 +4,11 @@
 //!
 //! The paths run in two sweeps: a forward sweep (top to bottom, left to right: paths from the left,
 //! upper-left, top and upper-right) and a backward sweep (the mirror image). The two sweeps run on
-//! two threads at once, each computing its own cost rows on the fly; they both add into `S`, one
-//! row lock each, and only meet once, in the middle of the image. Memory: `S` plus, per sweep, two
-//! rows of path costs.
+//! two threads at once and only meet once, in the middle of the image; each row has a lock. The
+//! sweep that reaches a row first writes its `S` and computes its cost row, into a stored volume
+//! when the search window is narrow enough for one (coarse-to-fine) so that the other sweep reads
+//! it there; the second sweep adds its paths. Memory: `S`, the cost volume when stored (1 byte
+//! per pixel and disparity), and per sweep two rows of path costs.
 //!
 //! Each pixel may search its own window of `k` disparities `base(p)..base(p)+k` (coarse-to-fine);
 //! a path step then aligns the neighbour's window to the pixel's before the recurrence.
@@ -66,6 +68,11 @@ impl Penalties {
 
 /// Aggregates along `paths` (4 or 8) directions. `bases` (one per pixel, or `None` for all 0) and
 /// `k` say which disparities each pixel searches; `guide` is the left image, for adaptive P2.
+///
+/// With `store_costs`, whichever sweep reaches a row first computes its cost row into a volume of
+/// `w·h·k` bytes and the other sweep reads it there, so costs are computed once, half on each
+/// thread; without it each sweep computes every row itself (no volume beyond `S`, for a full
+/// search whose memory bound leaves no room for one).
 pub fn aggregate(
     cost: &dyn CostRows,
     guide: &Raster<u8>,
@@ -73,18 +80,40 @@ pub fn aggregate(
     k: usize,
     paths: u32,
     penalties: &Penalties,
+    store_costs: bool,
 ) -> Aggregated {
     let (w, h) = (cost.width(), cost.height());
     let mut s = vec![0u16; w * h * k];
     let mut min_sum = vec![0u16; w * h];
+    let mut volume = if store_costs {
+        vec![0u8; w * h * k]
+    } else {
+        Vec::new()
+    };
     {
-        let rows: Vec<Mutex<(&mut [u16], &mut [u16])>> = s
+        let mut cost_rows = volume.chunks_mut(w * k);
+        let rows: Vec<Mutex<Row>> = s
             .chunks_mut(w * k)
             .zip(min_sum.chunks_mut(w))
-            .map(Mutex::new)
+            .map(|(s, min_sum)| {
+                Mutex::new(Row {
+                    visited: false,
+                    s,
+                    min_sum,
+                    costs: cost_rows.next(),
+                })
+            })
             .collect();
         let sweep = |forward: bool| {
-            let sweep = Sweep::new(cost, guide, bases, k, paths == 8, penalties, forward);
+            let sweep = Sweep {
+                cost,
+                guide,
+                bases,
+                k,
+                diagonals: paths == 8,
+                pen: penalties,
+                forward,
+            };
             run_sweep(&sweep, &rows)
         };
         rayon::join(|| sweep(true), || sweep(false));
@@ -100,13 +129,29 @@ pub fn aggregate(
 }
 
 /// Bytes [`aggregate`] allocates for an image of `w × h` with `k` disparities (both sweeps).
-pub fn working_bytes(w: usize, h: usize, k: usize) -> usize {
-    let volume = w * h * k * 2 + w * h * 2;
+pub fn working_bytes(w: usize, h: usize, k: usize, store_costs: bool) -> usize {
+    let volume = w * h * k * (2 + store_costs as usize) + w * h * 2;
     let per_sweep = w * k + 2 * 3 * w * (k + 2) * 2 + 2 * (k + 2) * 2 + 3 * 2 * w * 2;
     volume + 2 * per_sweep
 }
 
-type RowLocks<'r> = [Mutex<(&'r mut [u16], &'r mut [u16])>];
+/// One image row of the outputs, shared by the two sweeps (each adds its paths).
+struct Row<'r> {
+    /// Whether a sweep has been here. The first one computes the row's costs (when stored) and
+    /// writes `S` and `min_sum` without reading them, the second adds to them. Writing first
+    /// matters: on fresh zeroed pages a read maps the shared zero page, and the write after it
+    /// must then be made visible to every core (an inter-processor interrupt per page, a VM exit
+    /// under virtualisation: 7–10 % of the matcher's time in `perf` on a 2-core VM).
+    visited: bool,
+    /// `S` of the row.
+    s: &'r mut [u16],
+    /// `Σ_r min_d L_r` of the row.
+    min_sum: &'r mut [u16],
+    /// The row's costs when they are stored (see [`aggregate`]).
+    costs: Option<&'r mut [u8]>,
+}
+
+type RowLocks<'r> = [Mutex<Row<'r>>];
 
 crate::avx2_variant!(fn run_sweep<'a, 'b, 'r>(sweep: &'b Sweep<'a>, rows: &'b RowLocks<'r>) => sweep_body);
 
@@ -142,32 +187,12 @@ impl PathRow {
     }
 }
 
-impl<'a> Sweep<'a> {
-    fn new(
-        cost: &'a dyn CostRows,
-        guide: &'a Raster<u8>,
-        bases: Option<&'a [u16]>,
-        k: usize,
-        diagonals: bool,
-        pen: &'a Penalties,
-        forward: bool,
-    ) -> Self {
-        Sweep {
-            cost,
-            guide,
-            bases,
-            k,
-            diagonals,
-            pen,
-            forward,
-        }
-    }
-
+impl Sweep<'_> {
     #[inline(always)]
     fn run(&self, rows: &RowLocks<'_>) {
         let (w, h, k) = (self.cost.width(), self.cost.height(), self.k);
         let kp = k + 2;
-        let mut costs = vec![0u8; w * k];
+        let mut scratch = Vec::new();
         // Index 0: along the row; 1: vertical; 2, 3: the two diagonals. prev = row before.
         let ndir = if self.diagonals { 3 } else { 1 };
         let mut prev: Vec<PathRow> = (0..ndir).map(|_| PathRow::new(w, k)).collect();
@@ -196,7 +221,6 @@ impl<'a> Sweep<'a> {
                 (Some(b), Some(py)) => Some(&b[py * w..(py + 1) * w]),
                 _ => None,
             };
-            self.cost.row(y, row_bases, k, &mut costs);
             let g = self.guide.row(y);
             let gp = prev_y.map(|py| self.guide.row(py));
 
@@ -204,7 +228,27 @@ impl<'a> Sweep<'a> {
                 // A panic on the other sweep poisoned the lock; it propagates from rayon::join.
                 return;
             };
-            let (s_row, min_row) = &mut *guard;
+            let Row {
+                visited,
+                s: s_row,
+                min_sum: min_row,
+                costs: stored,
+            } = &mut *guard;
+            let first = !*visited;
+            *visited = true;
+            let costs: &[u8] = match stored {
+                Some(row) => {
+                    if first {
+                        self.cost.row(y, row_bases, k, row);
+                    }
+                    row
+                }
+                None => {
+                    scratch.resize(w * k, 0);
+                    self.cost.row(y, row_bases, k, &mut scratch);
+                    &scratch
+                }
+            };
             for xi in 0..w {
                 let x = if self.forward { xi } else { w - 1 - xi };
                 let c = &costs[x * k..(x + 1) * k];
@@ -227,7 +271,12 @@ impl<'a> Sweep<'a> {
                         let shift = base as isize - row_bases.map_or(0, |b| b[xq]) as isize;
                         (align(&hprev, shift, &mut aligned), hmin)
                     };
-                    let m = step(c, src, minprev, p1, p2, &mut hcur, sum);
+                    // The first sweep here writes the row's sums, the second adds to them.
+                    let m = if first {
+                        step::<true>(c, src, minprev, p1, p2, &mut hcur, sum)
+                    } else {
+                        step::<false>(c, src, minprev, p1, p2, &mut hcur, sum)
+                    };
                     min_total += m as u32;
                     hmin = m;
                     std::mem::swap(&mut hprev, &mut hcur);
@@ -245,14 +294,19 @@ impl<'a> Sweep<'a> {
                             let shift = base as isize - prev_bases.map_or(0, |b| b[xq]) as isize;
                             let src =
                                 align(&prev[dir].l[xq * kp..(xq + 1) * kp], shift, &mut aligned);
-                            step(c, src, prev[dir].min[xq], p1, p2, out, sum)
+                            step::<false>(c, src, prev[dir].min[xq], p1, p2, out, sum)
                         }
-                        _ => step(c, &start, 0, p1, self.pen.p2_table[0], out, sum),
+                        _ => step::<false>(c, &start, 0, p1, self.pen.p2_table[0], out, sum),
                     };
                     cur[dir].min[x] = m;
                     min_total += m as u32;
                 }
-                min_row[x] = min_row[x].saturating_add(min_total.min(u16::MAX as u32) as u16);
+                let m = min_total.min(u16::MAX as u32) as u16;
+                min_row[x] = if first {
+                    m
+                } else {
+                    min_row[x].saturating_add(m)
+                };
             }
             drop(guard);
             std::mem::swap(&mut prev, &mut cur);
@@ -281,10 +335,11 @@ fn align<'b>(neighbour: &'b [u16], shift: isize, scratch: &'b mut [u16]) -> &'b 
     scratch
 }
 
-/// One recurrence step (eq. 3.3) for every disparity of a pixel; adds into `sum`, returns the
-/// minimum of the new path costs. `prev` and `out` hold `k + 2` values with `FAR` at both ends.
+/// One recurrence step (eq. 3.3) for every disparity of a pixel; adds into `sum` (`ASSIGN`:
+/// overwrites it), returns the minimum of the new path costs. `prev` and `out` hold `k + 2`
+/// values with `FAR` at both ends.
 #[inline(always)]
-fn step(
+fn step<const ASSIGN: bool>(
     cost: &[u8],
     prev: &[u16],
     minprev: u16,
@@ -317,7 +372,7 @@ fn step(
         }
         out[b + 1..b + 1 + LANES].copy_from_slice(&v);
         for (s, v) in sum[b..b + LANES].iter_mut().zip(v) {
-            *s = s.saturating_add(v);
+            *s = if ASSIGN { v } else { s.saturating_add(v) };
         }
     }
     let mut best = best.iter().copied().min().unwrap_or(u16::MAX);
@@ -328,7 +383,7 @@ fn step(
             .min(jump);
         let v = (cost[i] as u16).saturating_add(t - minprev);
         out[i + 1] = v;
-        sum[i] = sum[i].saturating_add(v);
+        sum[i] = if ASSIGN { v } else { sum[i].saturating_add(v) };
         best = best.min(v);
     }
     best
@@ -372,7 +427,7 @@ mod tests {
         let guide = Raster::filled(12, 11, 0u8);
         for paths in [4, 8] {
             let pen = Penalties::new(10, 100, 0.0, paths);
-            let a = aggregate(&toy, &guide, None, 10, paths, &pen);
+            let a = aggregate(&toy, &guide, None, 10, paths, &pen, paths == 8);
             for p in 0..12 * 11 {
                 assert_eq!(argmin(&a.s[p * 10..p * 10 + 10]), 3, "pixel {p}");
             }
@@ -384,12 +439,26 @@ mod tests {
     }
 
     #[test]
+    fn stored_and_on_the_fly_costs_aggregate_identically() {
+        let toy = Toy { w: 23, h: 9, d: 4 };
+        let guide = Raster::from_fn(23, 9, |x, y| ((x * 29 + y * 13) % 17 * 15) as u8);
+        let pen = Penalties::new(10, 100, 16.0, 8);
+        let bases: Vec<u16> = (0..23 * 9).map(|p| (1 + p % 4) as u16).collect();
+        for b in [None, Some(&bases[..])] {
+            let fly = aggregate(&toy, &guide, b, 7, 8, &pen, false);
+            let stored = aggregate(&toy, &guide, b, 7, 8, &pen, true);
+            assert_eq!(fly.s, stored.s);
+            assert_eq!(fly.min_sum, stored.min_sum);
+        }
+    }
+
+    #[test]
     fn huge_p2_is_clamped_so_nothing_saturates() {
         let toy = Toy { w: 9, h: 9, d: 2 };
         let guide = Raster::filled(9, 9, 0u8);
         let pen = Penalties::new(u16::MAX, u16::MAX, 0.0, 8);
         assert!(8 * (255 + pen.p2_table[0] as u32) <= u16::MAX as u32);
-        let a = aggregate(&toy, &guide, None, 6, 8, &pen);
+        let a = aggregate(&toy, &guide, None, 6, 8, &pen, false);
         assert!(a.s.iter().all(|&v| v < u16::MAX));
         for p in 0..81 {
             assert_eq!(argmin(&a.s[p * 6..p * 6 + 6]), 2);
@@ -403,7 +472,7 @@ mod tests {
         let pen = Penalties::new(10, 100, 0.0, 8);
         // Windows of 5 that all contain 6 but start at different places.
         let bases: Vec<u16> = (0..14 * 8).map(|p| (2 + p % 3) as u16).collect();
-        let a = aggregate(&toy, &guide, Some(&bases), 5, 8, &pen);
+        let a = aggregate(&toy, &guide, Some(&bases), 5, 8, &pen, true);
         for (p, &base) in bases.iter().enumerate() {
             if p == 5 * 14 + 5 {
                 continue;

@@ -17,6 +17,11 @@
 //! `composite.json`, `composite_error_vs_time.png` and, per scene, the truth and both
 //! composites with the first configuration (`NAME_truth.png`, `NAME_true_inputs.png`,
 //! `NAME_estimated.png`).
+//!
+//! With `--max-triangles N` (repeatable) the estimated composite of the first configuration is
+//! also rendered with the scene mesh simplified to each budget, next to the full grid: how few
+//! triangles the shadow receiver and occluder needs at equal quality (issue 5; the thesis meshed
+//! every pixel, 1.8 M triangles for a 2820×1920 photo).
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -25,6 +30,7 @@ use std::time::Instant;
 
 use parallax::context::{Context, ContextOptions};
 use parallax::image::{Image, Raster};
+use parallax::mesh::MeshOptions;
 use parallax::render::compare::{
     compare_true_inputs, render_truth, ComparisonSetup, ReferenceTruth, RegionErrors,
 };
@@ -52,6 +58,10 @@ pub struct CompositeArgs {
     /// `quick`: PBR shading with each shadow mode at the default size and filter.
     #[arg(long, default_value = "full", value_name = "full|quick")]
     configs: String,
+    /// Also render the estimated composite (first configuration) with the scene mesh simplified
+    /// to at most this many triangles (repeatable), next to the full grid.
+    #[arg(long = "max-triangles", value_name = "N")]
+    max_triangles: Vec<usize>,
     /// Where the tables, plot and images go.
     #[arg(long, default_value = "target/eval-composite", value_name = "DIR")]
     out: PathBuf,
@@ -84,10 +94,24 @@ struct SceneSummary {
     warnings: Vec<String>,
 }
 
+/// The estimated composite (first configuration) with one scene-mesh triangle budget.
+#[derive(serde::Serialize)]
+struct BudgetRow {
+    scene: String,
+    /// The budget; `None` = the full grid (a vertex per pixel).
+    max_triangles: Option<usize>,
+    /// Triangles of the mesh rendered.
+    triangles: usize,
+    errors: RegionErrors,
+    /// A re-render with that mesh (after an untimed one that uploads it), milliseconds.
+    render_ms: f64,
+}
+
 #[derive(serde::Serialize)]
 struct Report {
     scenes: Vec<SceneSummary>,
     rows: Vec<Row>,
+    budgets: Vec<BudgetRow>,
 }
 
 fn configurations(which: &str) -> Result<Vec<RenderOptions>> {
@@ -169,6 +193,8 @@ struct Estimated {
     rows: Vec<(f64, RegionErrors)>,
     /// The first configuration's composite.
     first: Raster<[f32; 3]>,
+    /// Per mesh budget (the full grid first): budget, triangles, render milliseconds, errors.
+    budgets: Vec<(Option<usize>, usize, f64, RegionErrors)>,
     /// The trace's warnings, once each.
     warnings: Vec<String>,
 }
@@ -178,6 +204,7 @@ fn estimated(
     context: &Arc<Context>,
     truth: &ReferenceTruth,
     configs: &[RenderOptions],
+    max_triangles: &[usize],
 ) -> Result<Estimated> {
     let right = truth
         .right
@@ -218,12 +245,33 @@ fn estimated(
         rows.push((ms, truth.errors(&out.composite, true)));
         first.get_or_insert(out.composite);
     }
+    let mut budgets = Vec::new();
+    if let (Some(config), false) = (configs.first(), max_triangles.is_empty()) {
+        let full = MeshOptions {
+            max_triangles: None,
+            ..scene.mesh_options()
+        };
+        for budget in std::iter::once(None).chain(max_triangles.iter().copied().map(Some)) {
+            scene.set_mesh_options(MeshOptions {
+                max_triangles: budget,
+                ..full
+            })?;
+            let triangles = scene.mesh()?.triangle_count();
+            scene.render(config)?;
+            let start = Instant::now();
+            let out = scene.render(config)?;
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            warnings.extend(scene.last_trace().warnings().iter().cloned());
+            budgets.push((budget, triangles, ms, truth.errors(&out.composite, true)));
+        }
+    }
     warnings.sort();
     warnings.dedup();
     Ok(Estimated {
         estimation_ms,
         rows,
         first: first.unwrap_or_else(|| truth.photo.clone()),
+        budgets,
         warnings,
     })
 }
@@ -237,6 +285,7 @@ pub fn run(args: CompositeArgs) -> Result<()> {
     let mut report = Report {
         scenes: Vec::new(),
         rows: Vec::new(),
+        budgets: Vec::new(),
     };
     let progress = args.common.progress(
         args.scenes.len() as u64,
@@ -246,7 +295,7 @@ pub fn run(args: CompositeArgs) -> Result<()> {
         let setup = ComparisonSetup::for_scene(name, args.width, args.spp, configs.clone())?;
         let truth = render_truth(&setup, true)?;
         let true_run = compare_true_inputs(&renderer, &truth, &configs)?;
-        let estimated = estimated(&context, &truth, &configs)?;
+        let estimated = estimated(&context, &truth, &configs, &args.max_triangles)?;
         let (w, h) = truth.size();
         for r in &true_run.rows {
             report.rows.push(Row {
@@ -277,6 +326,15 @@ pub fn run(args: CompositeArgs) -> Result<()> {
             Image::from_linear_rgb(&ours.composite).save_png(image("true_inputs"))?;
         }
         Image::from_linear_rgb(&estimated.first).save_png(image("estimated"))?;
+        for (max_triangles, triangles, render_ms, errors) in estimated.budgets {
+            report.budgets.push(BudgetRow {
+                scene: name.clone(),
+                max_triangles,
+                triangles,
+                errors,
+                render_ms,
+            });
+        }
         report.scenes.push(SceneSummary {
             scene: name.clone(),
             width: w,
@@ -353,6 +411,42 @@ fn markdown(report: &Report, args: &CompositeArgs) -> String {
             );
         }
         s.push('\n');
+        let budgets: Vec<&BudgetRow> = report
+            .budgets
+            .iter()
+            .filter(|b| b.scene == sc.scene)
+            .collect();
+        if let Some(config) = report.rows.iter().find(|r| r.inputs == "estimated") {
+            if !budgets.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "Scene mesh budget (estimated inputs, {}):\n\n\
+                     | max triangles | triangles | MAE image | PSNR image | MAE artefact | PSNR artefact | MAE shadow | PSNR shadow | render ms |\n\
+                     |---|---|---|---|---|---|---|---|---|",
+                    config.config
+                );
+            }
+        }
+        for b in &budgets {
+            let e = &b.errors;
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.4} | {:.2} | {:.4} | {:.2} | {:.4} | {:.2} | {:.1} |",
+                b.max_triangles
+                    .map_or("full grid".to_string(), |n| n.to_string()),
+                b.triangles,
+                e.image.mae,
+                e.image.psnr,
+                e.artefact.mae,
+                e.artefact.psnr,
+                e.shadow.mae,
+                e.shadow.psnr,
+                b.render_ms,
+            );
+        }
+        if !budgets.is_empty() {
+            s.push('\n');
+        }
     }
     s.push_str(
         "Plot `composite_error_vs_time.png`: x = render time (log, 10 ms – 100 s), y = MAE over \

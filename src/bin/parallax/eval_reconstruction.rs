@@ -129,6 +129,9 @@ struct SceneResult {
     mesh_error: Option<Spread>,
     /// Pixels with true depth whose pick hit the mesh, fraction.
     mesh_coverage: f64,
+    /// Angle between the mesh's normal at the pick and the true normal over every pixel with
+    /// both (planes, objects and edges alike), degrees.
+    normal_error_deg: Option<Spread>,
     up_error_deg: f64,
     up_source: String,
     planes: Vec<PlaneResult>,
@@ -296,9 +299,10 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
                 .as_ref()
                 .map(|hit| ((-hit.point.z - truth) / truth).abs() as f64);
             let plane = *label.get(x, y);
-            let normal_err = match (&hit, plane) {
-                (Some(hit), Some(_)) => {
-                    Some(angle_deg(hit.normal, Vec3::from(*images.normals.get(x, y))) as f64)
+            let true_normal = Vec3::from(*images.normals.get(x, y));
+            let normal_err = match &hit {
+                Some(hit) if true_normal.length() > 0.5 => {
+                    Some(angle_deg(hit.normal, true_normal) as f64)
                 }
                 _ => None,
             };
@@ -370,6 +374,7 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
         depth_error: spread(scores.iter().filter_map(|s| s.0).collect()),
         mesh_error: spread(scores.iter().filter_map(|s| s.1).collect()),
         mesh_coverage: with_hit as f64 / with_truth.max(1) as f64,
+        normal_error_deg: spread(scores.iter().filter_map(|s| s.5).collect()),
         up_error_deg: angle_deg(surfaces.up, up) as f64,
         up_source: format!("{:?}", surfaces.up_source),
         planes: plane_results,
@@ -437,11 +442,12 @@ fn interior_pixel(label: &Raster<Option<usize>>, k: usize) -> Option<(usize, usi
 }
 
 /// The columns of the results table (also checked by the tests).
-pub const COLUMNS: [&str; 11] = [
+pub const COLUMNS: [&str; 12] = [
     "scene",
     "depth rel. err. median / p90",
     "mesh rel. err. median / p90",
     "mesh coverage",
+    "normal err. median / p90, all pixels (°)",
     "floor normal err. median (°)",
     "table normal err. median (°)",
     "floor plane normal err. (°)",
@@ -497,11 +503,15 @@ fn markdown(results: &[SceneResult], args: &ReconstructionArgs) -> String {
         };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.1} % | {} | {} | {} | {} | {:.2} | {} | {} |",
+            "| {} | {} | {} | {:.1} % | {} | {} | {} | {} | {} | {:.2} | {} | {} |",
             r.scene,
             pct(r.depth_error),
             pct(r.mesh_error),
             100.0 * r.mesh_coverage,
+            match r.normal_error_deg {
+                Some(v) => format!("{:.2} / {:.2}", v.median, v.p90),
+                None => "—".into(),
+            },
             normal("floor"),
             normal("table"),
             detected("floor"),
