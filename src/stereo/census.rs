@@ -19,6 +19,7 @@ pub struct CensusCost {
 }
 
 /// Census transform with a `(2rx+1)×(2ry+1)` window (at most 63 neighbours); borders replicate.
+/// Neighbour `t` (row-major, the centre skipped) is bit `count − 1 − t` of a pixel's string.
 pub fn census_transform(image: &Raster<u8>, rx: usize, ry: usize) -> Vec<u64> {
     let (w, h) = (image.width(), image.height());
     // Rows padded by rx replicated pixels on each side, so the inner loop has no bounds logic.
@@ -32,50 +33,72 @@ pub fn census_transform(image: &Raster<u8>, rx: usize, ry: usize) -> Vec<u64> {
         dst[..rx].fill(first);
         dst[rx + w..].fill(last);
     }
+    let window = Window {
+        rx,
+        ry,
+        neighbours: (0..=2 * ry)
+            .flat_map(|j| (0..=2 * rx).map(move |i| (j, i)))
+            .filter(|&(j, i)| (j, i) != (ry, rx))
+            .collect(),
+    };
+    debug_assert!(window.neighbours.len() <= 64);
+    let padded = Padded {
+        pixels: &padded,
+        width: pw,
+        height: h,
+    };
     let mut out = vec![0u64; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, bits)| {
-        census_row_transform(&padded, pw, h, y, rx, ry, bits);
-    });
+    out.par_chunks_mut(w).enumerate().for_each_init(
+        || vec![0u8; w],
+        |byte, (y, bits)| census_row_transform(&padded, &window, y, byte, bits),
+    );
     out
 }
 
-crate::avx2_variant!(fn census_row_transform<'a>(padded: &'a [u8], pw: usize, h: usize, y: usize, rx: usize, ry: usize, bits: &'a mut [u64]) => census_row_body);
+/// A census window: half-sizes and the neighbours' offsets `(row, column)` from its top-left
+/// corner, in bit order.
+struct Window {
+    rx: usize,
+    ry: usize,
+    neighbours: Vec<(usize, usize)>,
+}
+
+/// An image whose rows are padded by `rx` replicated pixels on each side.
+struct Padded<'a> {
+    pixels: &'a [u8],
+    width: usize,
+    height: usize,
+}
+
+crate::avx2_variant!(fn census_row_transform<'a>(padded: &'a Padded<'a>, window: &'a Window, y: usize, byte: &'a mut [u8], bits: &'a mut [u64]) => census_row_body);
 
 #[inline(always)]
 fn census_row_body(
-    padded: &[u8],
-    pw: usize,
-    h: usize,
+    padded: &Padded<'_>,
+    window: &Window,
     y: usize,
-    rx: usize,
-    ry: usize,
+    byte: &mut [u8],
     bits: &mut [u64],
 ) {
-    let w = bits.len();
-    let centre = &padded[y * pw + rx..y * pw + rx + w];
-    // Neighbours in row-major order, the centre skipped; neighbour t ends up in bit
-    // `count − 1 − t` (the first is the most significant).
-    let neighbours: Vec<(usize, usize)> = (0..=2 * ry)
-        .flat_map(|j| (0..=2 * rx).map(move |i| (j, i)))
-        .filter(|&(j, i)| (j, i) != (ry, rx))
-        .collect();
-    let count = neighbours.len();
+    let (w, pw, h) = (bits.len(), padded.width, padded.height);
+    let (rx, ry) = (window.rx, window.ry);
+    let centre = &padded.pixels[y * pw + rx..y * pw + rx + w];
+    let count = window.neighbours.len();
     // Eight neighbours at a time into a byte per pixel (32 pixels per AVX2 instruction), then
-    // each byte into its place in the 64-bit strings: 8 passes over u64 lanes instead of one per
-    // neighbour.
-    let mut byte = vec![0u8; w];
+    // each byte into its place in the 64-bit strings: ⌈count / 8⌉ passes over u64 lanes instead
+    // of one per neighbour.
     bits.fill(0);
-    for (g, group) in neighbours.chunks(8).enumerate() {
+    for (g, group) in window.neighbours.chunks(8).enumerate() {
         byte.fill(0);
         for &(j, i) in group {
             let yy = (y + j).saturating_sub(ry).min(h - 1);
-            let neighbour = &padded[yy * pw + i..yy * pw + i + w];
+            let neighbour = &padded.pixels[yy * pw + i..yy * pw + i + w];
             for ((b, &n), &c) in byte.iter_mut().zip(neighbour).zip(centre) {
                 *b = (*b << 1) | (n < c) as u8;
             }
         }
         let shift = count - 8 * g - group.len();
-        for (b, &v) in bits.iter_mut().zip(&byte) {
+        for (b, &v) in bits.iter_mut().zip(&*byte) {
             *b |= (v as u64) << shift;
         }
     }
@@ -158,6 +181,34 @@ mod tests {
         let img = Raster::from_vec(3, 3, vec![1, 9, 1, 9, 5, 9, 1, 9, 1]);
         let c = census_transform(&img, 1, 1);
         assert_eq!(c[4], 0b1010_0101);
+    }
+
+    #[test]
+    fn bit_strings_match_a_pixel_by_pixel_transform_for_every_window_shape() {
+        let (w, h) = (19, 11);
+        let img = Raster::from_fn(w, h, |x, y| ((x * 37 + y * 101 + x * y) % 251) as u8);
+        for (rx, ry) in [(0, 1), (1, 0), (1, 1), (2, 1), (2, 2), (3, 3), (4, 3)] {
+            let fast = census_transform(&img, rx, ry);
+            for y in 0..h {
+                for x in 0..w {
+                    // Neighbours in row-major order, each shifted in below the ones before.
+                    let mut bits = 0u64;
+                    let at = |dx: isize, dy: isize| {
+                        let xx = (x as isize + dx).clamp(0, w as isize - 1) as usize;
+                        let yy = (y as isize + dy).clamp(0, h as isize - 1) as usize;
+                        *img.get(xx, yy)
+                    };
+                    for dy in -(ry as isize)..=ry as isize {
+                        for dx in -(rx as isize)..=rx as isize {
+                            if (dx, dy) != (0, 0) {
+                                bits = bits << 1 | (at(dx, dy) < at(0, 0)) as u64;
+                            }
+                        }
+                    }
+                    assert_eq!(fast[y * w + x], bits, "window {rx}x{ry}, pixel ({x}, {y})");
+                }
+            }
+        }
     }
 
     #[test]

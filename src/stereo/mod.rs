@@ -135,7 +135,8 @@ pub fn match_pair(
         r = warped;
         stats.misalignment = Some((est.dy, est.angle_deg));
     }
-    let out = match_grey(&l, &r, options, &mut stats)?;
+    let full_search_cells = l.width() * l.height() * (options.max_disparity as usize + 1);
+    let out = match_grey(&l, &r, options, full_search_cells, &mut stats)?;
     stats.total_ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(Disparity {
         disparity: out.0,
@@ -151,10 +152,13 @@ fn grey(view: &ImageView) -> Raster<u8> {
 }
 
 /// The whole pipeline on grey images; returns (disparity, confidence).
+/// `full_search_cells`: pixels × disparities of the full-size search, whose 2 bytes each bound the
+/// working memory (a coarse level uses its parent's).
 pub(crate) fn match_grey(
     l: &Raster<u8>,
     r: &Raster<u8>,
     o: &StereoOptions,
+    full_search_cells: usize,
     stats: &mut StereoStats,
 ) -> Result<(Raster<f32>, Raster<f32>)> {
     let (w, h) = (l.width(), l.height());
@@ -190,7 +194,7 @@ pub(crate) fn match_grey(
             ..o.clone()
         };
         let mut coarse_stats = StereoStats::default();
-        let (coarse, _) = match_grey(&cl, &cr, &coarse_opts, &mut coarse_stats)?;
+        let (coarse, _) = match_grey(&cl, &cr, &coarse_opts, full_search_cells, &mut coarse_stats)?;
         let (bases, k) = if use_coarse {
             let k = o.coarse_window as usize;
             let bases = pyramid::window_bases(&coarse, w, h, k, o.max_disparity as usize);
@@ -238,10 +242,17 @@ pub(crate) fn match_grey(
                 4
             };
             let pen = sgm::Penalties::new(o.p1, o.p2, o.p2_gradient_scale, paths);
-            // A window narrow enough that `S` (2 bytes a disparity) and a stored cost volume
-            // (1 byte) stay within the 2 bytes per pixel and disparity of the whole range that
-            // the matcher's memory bound allows: both sweeps then read costs computed once.
-            let store_costs = 3 * k <= 2 * levels;
+            // Costs are computed once for both sweeps, in a stored volume (1 byte a pixel and
+            // disparity searched), when the whole of this step's memory still fits the matcher's
+            // bound, 2 bytes per pixel and disparity of the full-size range plus 64 MiB: with a
+            // narrow coarse-to-fine window, and at a coarse level.
+            let peak = |store_costs: bool| {
+                fixed
+                    + sgm::working_bytes(w, h, k, store_costs)
+                    + 9 * n
+                    + 12 * w * rayon::current_num_threads()
+            };
+            let store_costs = peak(true) <= 2 * full_search_cells + (64 << 20);
             let agg = stats.time("stereo.aggregate", || {
                 sgm::aggregate(
                     cost.as_ref(),
@@ -259,11 +270,7 @@ pub(crate) fn match_grey(
                 lr_max_diff: o.lr_max_diff,
                 confidence_unit: pen.p1 as f32,
             };
-            let peak = fixed
-                + sgm::working_bytes(w, h, k, store_costs)
-                + 9 * n
-                + 12 * w * rayon::current_num_threads();
-            stats.peak_working_bytes = stats.peak_working_bytes.max(peak as u64);
+            stats.peak_working_bytes = stats.peak_working_bytes.max(peak(store_costs) as u64);
             stats.time("stereo.decide", || {
                 refine::decide(&agg, bases.as_deref(), &opts)
             })

@@ -6,9 +6,9 @@
 //! upper-left, top and upper-right) and a backward sweep (the mirror image). The two sweeps run on
 //! two threads at once and only meet once, in the middle of the image; each row has a lock. The
 //! sweep that reaches a row first writes its `S` and computes its cost row, into a stored volume
-//! when the search window is narrow enough for one (coarse-to-fine) so that the other sweep reads
-//! it there; the second sweep adds its paths. Memory: `S`, the cost volume when stored (1 byte
-//! per pixel and disparity), and per sweep two rows of path costs.
+//! when the memory bound leaves room for one (a narrow coarse-to-fine window, a coarse level) so
+//! that the other sweep reads it there; the second sweep adds its paths. Memory: `S`, the cost
+//! volume when stored (1 byte per pixel and disparity), and per sweep two rows of path costs.
 //!
 //! Each pixel may search its own window of `k` disparities `base(p)..base(p)+k` (coarse-to-fine);
 //! a path step then aligns the neighbour's window to the pixel's before the recurrence.
@@ -107,6 +107,7 @@ pub fn aggregate(
         let sweep = |forward: bool| {
             let sweep = Sweep {
                 cost,
+                stored_costs: store_costs,
                 guide,
                 bases,
                 k,
@@ -135,7 +136,8 @@ pub fn working_bytes(w: usize, h: usize, k: usize, store_costs: bool) -> usize {
     volume + 2 * per_sweep
 }
 
-/// One image row of the outputs, shared by the two sweeps (each adds its paths).
+/// One image row shared by the two sweeps: its slices of `S` and `min_sum`, and of the stored
+/// cost volume.
 struct Row<'r> {
     /// Whether a sweep has been here. The first one computes the row's costs (when stored) and
     /// writes `S` and `min_sum` without reading them, the second adds to them. Writing first
@@ -162,6 +164,8 @@ fn sweep_body(sweep: &Sweep<'_>, rows: &RowLocks<'_>) {
 
 struct Sweep<'a> {
     cost: &'a dyn CostRows,
+    /// Whether the rows carry a stored cost row ([`Row::costs`]).
+    stored_costs: bool,
     guide: &'a Raster<u8>,
     bases: Option<&'a [u16]>,
     k: usize,
@@ -223,6 +227,11 @@ impl Sweep<'_> {
             };
             let g = self.guide.row(y);
             let gp = prev_y.map(|py| self.guide.row(py));
+            if !self.stored_costs {
+                // Outside the lock, so that the two sweeps never wait on each other's costs.
+                scratch.resize(w * k, 0);
+                self.cost.row(y, row_bases, k, &mut scratch);
+            }
 
             let Ok(mut guard) = rows[y].lock() else {
                 // A panic on the other sweep poisoned the lock; it propagates from rayon::join.
@@ -243,11 +252,7 @@ impl Sweep<'_> {
                     }
                     row
                 }
-                None => {
-                    scratch.resize(w * k, 0);
-                    self.cost.row(y, row_bases, k, &mut scratch);
-                    &scratch
-                }
+                None => &scratch,
             };
             for xi in 0..w {
                 let x = if self.forward { xi } else { w - 1 - xi };
@@ -438,17 +443,120 @@ mod tests {
         }
     }
 
+    /// Pseudo-random costs in 0..60 for every disparity `d < levels`.
+    struct Noise {
+        w: usize,
+        h: usize,
+    }
+    impl Noise {
+        fn at(x: usize, y: usize, d: usize) -> u8 {
+            ((x * 7919 + y * 104_729 + d * 1_299_709) % 1021 % 60) as u8
+        }
+    }
+    impl CostRows for Noise {
+        fn width(&self) -> usize {
+            self.w
+        }
+        fn height(&self) -> usize {
+            self.h
+        }
+        fn row(&self, y: usize, bases: Option<&[u16]>, k: usize, out: &mut [u8]) {
+            for x in 0..self.w {
+                let base = bases.map_or(0, |b| b[x] as usize);
+                for i in 0..k {
+                    out[x * k + i] = Noise::at(x, y, base + i);
+                }
+            }
+        }
+    }
+
+    /// Eq. 3.3–3.4 written out plainly (u32, one path at a time): `S` and `Σ_r min_d L_r`.
+    fn reference(
+        noise: &Noise,
+        guide: &Raster<u8>,
+        k: usize,
+        paths: u32,
+        pen: &Penalties,
+    ) -> (Vec<u32>, Vec<u32>) {
+        let (w, h) = (noise.w as isize, noise.h as isize);
+        let mut dirs = vec![(1, 0), (-1, 0), (0, 1), (0, -1)];
+        if paths == 8 {
+            dirs.extend([(1, 1), (-1, 1), (1, -1), (-1, -1)]);
+        }
+        let idx = |x: isize, y: isize| (y * w + x) as usize;
+        let (mut s, mut min_sum) = (
+            vec![0u32; (w * h) as usize * k],
+            vec![0u32; (w * h) as usize],
+        );
+        for (dx, dy) in dirs {
+            let mut l = vec![0u32; (w * h) as usize * k];
+            // Visit p after p − r: along the row when the path is horizontal, else row by row.
+            let ys: Vec<isize> = if dy >= 0 {
+                (0..h).collect()
+            } else {
+                (0..h).rev().collect()
+            };
+            let xs: Vec<isize> = if dx >= 0 {
+                (0..w).collect()
+            } else {
+                (0..w).rev().collect()
+            };
+            for &y in &ys {
+                for &x in &xs {
+                    let (qx, qy) = (x - dx, y - dy);
+                    let p = idx(x, y);
+                    let c = |d: usize| Noise::at(x as usize, y as usize, d) as u32;
+                    if qx < 0 || qy < 0 || qx >= w || qy >= h {
+                        for d in 0..k {
+                            l[p * k + d] = c(d);
+                        }
+                        continue;
+                    }
+                    let q = idx(qx, qy);
+                    let prev = &l[q * k..(q + 1) * k].to_vec();
+                    let m = *prev.iter().min().unwrap();
+                    let grad = guide
+                        .get(x as usize, y as usize)
+                        .abs_diff(*guide.get(qx as usize, qy as usize));
+                    let p2 = pen.p2_table[grad as usize] as u32;
+                    for d in 0..k {
+                        let mut t = prev[d].min(m + p2);
+                        if d > 0 {
+                            t = t.min(prev[d - 1] + pen.p1 as u32);
+                        }
+                        if d + 1 < k {
+                            t = t.min(prev[d + 1] + pen.p1 as u32);
+                        }
+                        l[p * k + d] = c(d) + t - m;
+                    }
+                }
+            }
+            for p in 0..(w * h) as usize {
+                let lp = &l[p * k..(p + 1) * k];
+                min_sum[p] += lp.iter().min().unwrap();
+                for d in 0..k {
+                    s[p * k + d] += lp[d];
+                }
+            }
+        }
+        (s, min_sum)
+    }
+
     #[test]
-    fn stored_and_on_the_fly_costs_aggregate_identically() {
-        let toy = Toy { w: 23, h: 9, d: 4 };
-        let guide = Raster::from_fn(23, 9, |x, y| ((x * 29 + y * 13) % 17 * 15) as u8);
-        let pen = Penalties::new(10, 100, 16.0, 8);
-        let bases: Vec<u16> = (0..23 * 9).map(|p| (1 + p % 4) as u16).collect();
-        for b in [None, Some(&bases[..])] {
-            let fly = aggregate(&toy, &guide, b, 7, 8, &pen, false);
-            let stored = aggregate(&toy, &guide, b, 7, 8, &pen, true);
-            assert_eq!(fly.s, stored.s);
-            assert_eq!(fly.min_sum, stored.min_sum);
+    fn both_sweeps_give_the_plain_recurrence_with_stored_or_recomputed_costs() {
+        // k = 21: one whole 16-lane block and a scalar tail.
+        let (w, h, k) = (23, 9, 21);
+        let noise = Noise { w, h };
+        let guide = Raster::from_fn(w, h, |x, y| ((x * 29 + y * 13) % 17 * 15) as u8);
+        for paths in [4, 8] {
+            let pen = Penalties::new(10, 100, 16.0, paths);
+            let (s, min_sum) = reference(&noise, &guide, k, paths, &pen);
+            for store in [false, true] {
+                let a = aggregate(&noise, &guide, None, k, paths, &pen, store);
+                let widen = |v: &[u16]| v.iter().map(|&x| x as u32).collect::<Vec<_>>();
+                assert_eq!(widen(&a.s), s, "paths {paths}, stored {store}");
+                assert_eq!(widen(&a.min_sum), min_sum, "paths {paths}, stored {store}");
+            }
         }
     }
 

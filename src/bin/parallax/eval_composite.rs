@@ -60,8 +60,9 @@ pub struct CompositeArgs {
     configs: String,
     /// Also render the estimated composite (first configuration) with the scene mesh simplified
     /// to at most this many triangles (repeatable), next to the full grid.
-    #[arg(long = "max-triangles", value_name = "N")]
-    max_triangles: Vec<usize>,
+    #[arg(long = "max-triangles", value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..))]
+    max_triangles: Vec<u32>,
     /// Where the tables, plot and images go.
     #[arg(long, default_value = "target/eval-composite", value_name = "DIR")]
     out: PathBuf,
@@ -98,6 +99,8 @@ struct SceneSummary {
 #[derive(serde::Serialize)]
 struct BudgetRow {
     scene: String,
+    /// The configuration rendered (the first one).
+    config: String,
     /// The budget; `None` = the full grid (a vertex per pixel).
     max_triangles: Option<usize>,
     /// Triangles of the mesh rendered.
@@ -204,7 +207,7 @@ fn estimated(
     context: &Arc<Context>,
     truth: &ReferenceTruth,
     configs: &[RenderOptions],
-    max_triangles: &[usize],
+    max_triangles: &[u32],
 ) -> Result<Estimated> {
     let right = truth
         .right
@@ -246,12 +249,14 @@ fn estimated(
         first.get_or_insert(out.composite);
     }
     let mut budgets = Vec::new();
-    if let (Some(config), false) = (configs.first(), max_triangles.is_empty()) {
+    let budget_config = configs.first().filter(|_| !max_triangles.is_empty());
+    if let Some(config) = budget_config {
         let full = MeshOptions {
             max_triangles: None,
             ..scene.mesh_options()
         };
-        for budget in std::iter::once(None).chain(max_triangles.iter().copied().map(Some)) {
+        let asked = max_triangles.iter().map(|&n| Some(n as usize));
+        for budget in std::iter::once(None).chain(asked) {
             scene.set_mesh_options(MeshOptions {
                 max_triangles: budget,
                 ..full
@@ -329,6 +334,7 @@ pub fn run(args: CompositeArgs) -> Result<()> {
         for (max_triangles, triangles, render_ms, errors) in estimated.budgets {
             report.budgets.push(BudgetRow {
                 scene: name.clone(),
+                config: configs.first().map(label).unwrap_or_default(),
                 max_triangles,
                 triangles,
                 errors,
@@ -416,35 +422,31 @@ fn markdown(report: &Report, args: &CompositeArgs) -> String {
             .iter()
             .filter(|b| b.scene == sc.scene)
             .collect();
-        if let Some(config) = report.rows.iter().find(|r| r.inputs == "estimated") {
-            if !budgets.is_empty() {
-                let _ = writeln!(
-                    s,
-                    "Scene mesh budget (estimated inputs, {}):\n\n\
-                     | max triangles | triangles | MAE image | PSNR image | MAE artefact | PSNR artefact | MAE shadow | PSNR shadow | render ms |\n\
-                     |---|---|---|---|---|---|---|---|---|",
-                    config.config
-                );
-            }
-        }
-        for b in &budgets {
-            let e = &b.errors;
+        if let Some(first) = budgets.first() {
             let _ = writeln!(
                 s,
-                "| {} | {} | {:.4} | {:.2} | {:.4} | {:.2} | {:.4} | {:.2} | {:.1} |",
-                b.max_triangles
-                    .map_or("full grid".to_string(), |n| n.to_string()),
-                b.triangles,
-                e.image.mae,
-                e.image.psnr,
-                e.artefact.mae,
-                e.artefact.psnr,
-                e.shadow.mae,
-                e.shadow.psnr,
-                b.render_ms,
+                "Scene mesh budget (estimated inputs, {}):\n\n\
+                 | max triangles | triangles | MAE image | PSNR image | MAE artefact | PSNR artefact | MAE shadow | PSNR shadow | render ms |\n\
+                 |---|---|---|---|---|---|---|---|---|",
+                first.config
             );
-        }
-        if !budgets.is_empty() {
+            for b in &budgets {
+                let e = &b.errors;
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {:.4} | {:.2} | {:.4} | {:.2} | {:.4} | {:.2} | {:.1} |",
+                    b.max_triangles
+                        .map_or("full grid".to_string(), |n| n.to_string()),
+                    b.triangles,
+                    e.image.mae,
+                    e.image.psnr,
+                    e.artefact.mae,
+                    e.artefact.psnr,
+                    e.shadow.mae,
+                    e.shadow.psnr,
+                    b.render_ms,
+                );
+            }
             s.push('\n');
         }
     }

@@ -1,8 +1,8 @@
 //! `parallax eval reconstruction`: renders built-in synthetic scenes with the reference path
 //! tracer (exact depth, normals and camera pose), reconstructs them through the [`Scene`] (our
 //! stereo matcher, mesh, surfaces, placement) and scores the result against the truth: depth and
-//! mesh error, normal error on the floor and the table top, plane and up-vector detection, and
-//! where an object placed on the floor or the table comes to rest.
+//! mesh error, normal error over the whole image and on the floor and the table top, plane and
+//! up-vector detection, and where an object placed on the floor or the table comes to rest.
 //!
 //! Writes `reconstruction.md` (the table and how each figure is defined) and `reconstruction.json`
 //! (the same figures) to the output folder.
@@ -575,6 +575,9 @@ fn markdown(results: &[SceneResult], args: &ReconstructionArgs) -> String {
          - Relative error: |Z − Z*| / Z* per pixel with true depth Z* and an estimate Z (the depth \
          map's value; for the mesh, the depth of a pick at the pixel centre); median and 90th \
          percentile over those pixels. Coverage: pixels with true depth whose pick hits the mesh.\n\
+         - Normal error, all pixels: angle between the mesh's smooth normal at the pick and the \
+         true normal, over every pixel with true depth, a true normal and a hit (planes, objects \
+         and edges alike).\n\
          - Floor / table pixels: true normal within {PLANE_NORMAL_TOLERANCE_DEG}° of the true up \
          and true point within {} cm of the plane (heights from the scene description). Normal \
          error: angle between the mesh's smooth normal at the pick and the true normal.\n\
