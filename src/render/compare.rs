@@ -181,15 +181,19 @@ impl ReferenceTruth {
         )
     }
 
-    /// The error of `ours` against the ground truth per region. `ldr` compares with the truth
-    /// clipped to [0, 1], as a composite made from an 8-bit photo can at best reproduce.
+    /// The error of `ours` against the ground truth per region. `ldr` compares both clipped to
+    /// [0, 1]: what a composite made from an 8-bit photo can at best reproduce, and what a host
+    /// shows of ours (an RGBA8 composite, or any display) — a highlight above the photo's white
+    /// is white in both, however far above it the renderer put it.
     pub fn errors(&self, ours: &Raster<[f32; 3]>, ldr: bool) -> RegionErrors {
-        let clipped;
-        let truth = if ldr {
-            clipped = self.composite.map(|c| c.map(|v| v.clamp(0.0, 1.0)));
-            &clipped
+        let clip = |r: &Raster<[f32; 3]>| r.map(|c| c.map(|v| v.clamp(0.0, 1.0)));
+        let (clipped_truth, clipped_ours);
+        let (truth, ours) = if ldr {
+            clipped_truth = clip(&self.composite);
+            clipped_ours = clip(ours);
+            (&clipped_truth, &clipped_ours)
         } else {
-            &self.composite
+            (&self.composite, ours)
         };
         let in_artefact = |x: usize, y: usize| *self.mask.get(x, y) > 0.5;
         let in_shadow = |x: usize, y: usize| {
@@ -568,6 +572,36 @@ mod tests {
                 assert!((d[k] - want).abs() < 0.01 * want, "{n}: {d:?}");
             }
         }
+    }
+
+    #[test]
+    fn ldr_errors_clip_both_sides_and_hdr_errors_neither() {
+        // A 2×1 truth: an object pixel at 1.5 (a highlight) and a background pixel at 0.5.
+        let composite = Raster::from_vec(2, 1, vec![[1.5f32; 3], [0.5; 3]]);
+        let truth = ReferenceTruth {
+            photo: Raster::from_vec(2, 1, vec![[0.4f32; 3], [0.5; 3]]),
+            right: None,
+            calibration: StereoCalibration::from_focal_baseline(100.0, 0.1, 2, 1).unwrap(),
+            depth: Raster::filled(2, 1, 2.0),
+            lights: Vec::new(),
+            sh9: Sh9::default(),
+            composite: composite.clone(),
+            mask: Raster::from_vec(2, 1, vec![1.0, 0.0]),
+            ratio: Raster::filled(2, 1, [1.0f32; 3]),
+            artefacts: Vec::new(),
+            reference_seconds: 1.0,
+            samples_per_pixel: 1,
+        };
+        // Ours puts the highlight far above white: on a display both are white.
+        let ours = Raster::from_vec(2, 1, vec![[20.0f32; 3], [0.5; 3]]);
+        let ldr = truth.errors(&ours, true);
+        assert_eq!(ldr.artefact.mae, 0.0);
+        assert_eq!(ldr.image.mae, 0.0);
+        let hdr = truth.errors(&ours, false);
+        assert!((hdr.artefact.mae - 18.5).abs() < 1e-6, "{:?}", hdr.artefact);
+        // Below white nothing is clipped: a dark object pixel still counts.
+        let dark = Raster::from_vec(2, 1, vec![[0.25f32; 3], [0.5; 3]]);
+        assert!((truth.errors(&dark, true).artefact.mae - 0.75).abs() < 1e-6);
     }
 
     #[test]
