@@ -398,13 +398,13 @@ fn step<const ASSIGN: bool>(
 mod tests {
     use super::*;
 
-    /// A cost that prefers one disparity everywhere except one pixel that prefers another.
-    struct Toy {
+    /// Costs given by a function of (x, y, disparity), for every disparity.
+    struct FnCost<F: Fn(usize, usize, usize) -> u8 + Sync> {
         w: usize,
         h: usize,
-        d: usize,
+        at: F,
     }
-    impl CostRows for Toy {
+    impl<F: Fn(usize, usize, usize) -> u8 + Sync> CostRows for FnCost<F> {
         fn width(&self) -> usize {
             self.w
         }
@@ -413,12 +413,27 @@ mod tests {
         }
         fn row(&self, y: usize, bases: Option<&[u16]>, k: usize, out: &mut [u8]) {
             for x in 0..self.w {
+                let base = bases.map_or(0, |b| b[x] as usize);
                 for i in 0..k {
-                    let d = bases.map_or(0, |b| b[x] as usize) + i;
-                    let want = if (x, y) == (5, 5) { self.d + 5 } else { self.d };
-                    out[x * k + i] = if d == want { 0 } else { 40 };
+                    out[x * k + i] = (self.at)(x, y, base + i);
                 }
             }
+        }
+    }
+
+    /// A cost that prefers disparity `d` everywhere except pixel (5, 5), which prefers `d + 5`.
+    fn toy(w: usize, h: usize, d: usize) -> FnCost<impl Fn(usize, usize, usize) -> u8 + Sync> {
+        FnCost {
+            w,
+            h,
+            at: move |x, y, disparity| {
+                let want = if (x, y) == (5, 5) { d + 5 } else { d };
+                if disparity == want {
+                    0
+                } else {
+                    40
+                }
+            },
         }
     }
 
@@ -428,7 +443,7 @@ mod tests {
 
     #[test]
     fn smoothness_overrides_a_single_outlier_and_keeps_sums_unsaturated() {
-        let toy = Toy { w: 12, h: 11, d: 3 };
+        let toy = toy(12, 11, 3);
         let guide = Raster::filled(12, 11, 0u8);
         for paths in [4, 8] {
             let pen = Penalties::new(10, 100, 0.0, paths);
@@ -443,42 +458,20 @@ mod tests {
         }
     }
 
-    /// Pseudo-random costs in 0..60 for every disparity `d < levels`.
-    struct Noise {
-        w: usize,
-        h: usize,
-    }
-    impl Noise {
-        fn at(x: usize, y: usize, d: usize) -> u8 {
-            ((x * 7919 + y * 104_729 + d * 1_299_709) % 1021 % 60) as u8
-        }
-    }
-    impl CostRows for Noise {
-        fn width(&self) -> usize {
-            self.w
-        }
-        fn height(&self) -> usize {
-            self.h
-        }
-        fn row(&self, y: usize, bases: Option<&[u16]>, k: usize, out: &mut [u8]) {
-            for x in 0..self.w {
-                let base = bases.map_or(0, |b| b[x] as usize);
-                for i in 0..k {
-                    out[x * k + i] = Noise::at(x, y, base + i);
-                }
-            }
-        }
+    /// Pseudo-random costs in 0..60.
+    fn noise(x: usize, y: usize, d: usize) -> u8 {
+        ((x * 7919 + y * 104_729 + d * 1_299_709) % 1021 % 60) as u8
     }
 
     /// Eq. 3.3–3.4 written out plainly (u32, one path at a time): `S` and `Σ_r min_d L_r`.
     fn reference(
-        noise: &Noise,
+        cost: &FnCost<impl Fn(usize, usize, usize) -> u8 + Sync>,
         guide: &Raster<u8>,
         k: usize,
         paths: u32,
         pen: &Penalties,
     ) -> (Vec<u32>, Vec<u32>) {
-        let (w, h) = (noise.w as isize, noise.h as isize);
+        let (w, h) = (cost.w as isize, cost.h as isize);
         let mut dirs = vec![(1, 0), (-1, 0), (0, 1), (0, -1)];
         if paths == 8 {
             dirs.extend([(1, 1), (-1, 1), (1, -1), (-1, -1)]);
@@ -505,7 +498,7 @@ mod tests {
                 for &x in &xs {
                     let (qx, qy) = (x - dx, y - dy);
                     let p = idx(x, y);
-                    let c = |d: usize| Noise::at(x as usize, y as usize, d) as u32;
+                    let c = |d: usize| (cost.at)(x as usize, y as usize, d) as u32;
                     if qx < 0 || qy < 0 || qx >= w || qy >= h {
                         for d in 0..k {
                             l[p * k + d] = c(d);
@@ -546,7 +539,7 @@ mod tests {
     fn both_sweeps_give_the_plain_recurrence_with_stored_or_recomputed_costs() {
         // k = 21: one whole 16-lane block and a scalar tail.
         let (w, h, k) = (23, 9, 21);
-        let noise = Noise { w, h };
+        let noise = FnCost { w, h, at: noise };
         let guide = Raster::from_fn(w, h, |x, y| ((x * 29 + y * 13) % 17 * 15) as u8);
         for paths in [4, 8] {
             let pen = Penalties::new(10, 100, 16.0, paths);
@@ -562,7 +555,7 @@ mod tests {
 
     #[test]
     fn huge_p2_is_clamped_so_nothing_saturates() {
-        let toy = Toy { w: 9, h: 9, d: 2 };
+        let toy = toy(9, 9, 2);
         let guide = Raster::filled(9, 9, 0u8);
         let pen = Penalties::new(u16::MAX, u16::MAX, 0.0, 8);
         assert!(8 * (255 + pen.p2_table[0] as u32) <= u16::MAX as u32);
@@ -575,7 +568,7 @@ mod tests {
 
     #[test]
     fn per_pixel_windows_give_the_same_winner_as_the_full_search() {
-        let toy = Toy { w: 14, h: 8, d: 6 };
+        let toy = toy(14, 8, 6);
         let guide = Raster::filled(14, 8, 0u8);
         let pen = Penalties::new(10, 100, 0.0, 8);
         // Windows of 5 that all contain 6 but start at different places.

@@ -400,18 +400,12 @@ fn markdown(report: &Report, args: &CompositeArgs) -> String {
              |---|---|---|---|---|---|---|---|---|---|\n",
         );
         for r in report.rows.iter().filter(|r| r.scene == sc.scene) {
-            let e = &r.errors;
             let _ = writeln!(
                 s,
-                "| {} | {} | {:.4} | {:.2} | {:.4} | {:.2} | {:.4} | {:.2} | {:.1} | {:.0}× |",
+                "| {} | {} | {} | {:.1} | {:.0}× |",
                 r.inputs,
                 r.config,
-                e.image.mae,
-                e.image.psnr,
-                e.artefact.mae,
-                e.artefact.psnr,
-                e.shadow.mae,
-                e.shadow.psnr,
+                error_cells(&r.errors),
                 r.render_ms,
                 sc.reference_seconds * 1e3 / r.render_ms.max(1e-9)
             );
@@ -431,19 +425,13 @@ fn markdown(report: &Report, args: &CompositeArgs) -> String {
                 first.config
             );
             for b in &budgets {
-                let e = &b.errors;
                 let _ = writeln!(
                     s,
-                    "| {} | {} | {:.4} | {:.2} | {:.4} | {:.2} | {:.4} | {:.2} | {:.1} |",
+                    "| {} | {} | {} | {:.1} |",
                     b.max_triangles
                         .map_or("full grid".to_string(), |n| n.to_string()),
                     b.triangles,
-                    e.image.mae,
-                    e.image.psnr,
-                    e.artefact.mae,
-                    e.artefact.psnr,
-                    e.shadow.mae,
-                    e.shadow.psnr,
+                    error_cells(&b.errors),
                     b.render_ms,
                 );
             }
@@ -457,6 +445,15 @@ fn markdown(report: &Report, args: &CompositeArgs) -> String {
          tracer's own time is a black outline at zero error.\n",
     );
     s
+}
+
+/// The table cells "MAE image | PSNR image | MAE artefact | PSNR artefact | MAE shadow | PSNR
+/// shadow".
+fn error_cells(e: &RegionErrors) -> String {
+    format!(
+        "{:.4} | {:.2} | {:.4} | {:.2} | {:.4} | {:.2}",
+        e.image.mae, e.image.psnr, e.artefact.mae, e.artefact.psnr, e.shadow.mae, e.shadow.psnr
+    )
 }
 
 fn plot(report: &Report) -> Result<Image> {
