@@ -219,12 +219,14 @@ fn visible(occluders: &Occluders, p: Vec3, n: Vec3, l: Vec3, max_dist: f32) -> b
     true
 }
 
-/// Geometric term of a light at a sample (see the module documentation).
-fn term(light: &Light, s: &Sample, occluders: &Occluders, reach: f32) -> f32 {
+/// Unoccluded geometric term of a light at a sample (see the module documentation), with the
+/// unit direction towards the light and how far a visibility march must go; `None` when the
+/// sample faces away or lies behind an area light.
+fn geometry(light: &Light, s: &Sample, reach: f32) -> Option<(f32, Vec3, f32)> {
     let (l, dist) = light.towards(s.p);
     let cos = s.n.dot(l);
     if cos <= 0.0 {
-        return 0.0;
+        return None;
     }
     let (falloff, max_dist) = match light.kind {
         LightKind::Directional => (1.0, reach),
@@ -235,13 +237,21 @@ fn term(light: &Light, s: &Sample, occluders: &Occluders, reach: f32) -> f32 {
             } else {
                 1.0
             };
-            (facing / (dist * dist).max(1e-4), (dist * 0.95).min(reach))
+            // The march stops short of the emitter's own surface: a light placed from the
+            // depth of its visible pixels sits behind them, and would shadow itself.
+            let clear = (dist - light.size).max(0.0) * 0.95;
+            (facing / (dist * dist).max(1e-4), clear.min(reach))
         }
     };
-    if falloff <= 0.0 || !visible(occluders, s.p, s.n, l, max_dist) {
-        return 0.0;
+    (falloff > 0.0).then_some((cos * falloff, l, max_dist))
+}
+
+/// Geometric term of a light at a sample, cast shadows included.
+fn term(light: &Light, s: &Sample, occluders: &Occluders, reach: f32) -> f32 {
+    match geometry(light, s, reach) {
+        Some((shade, l, max_dist)) if visible(occluders, s.p, s.n, l, max_dist) => shade,
+        _ => 0.0,
     }
-    cos * falloff
 }
 
 /// Solves the augmented system `[A | b]` (Gauss–Jordan with partial pivoting; a singular column
@@ -660,21 +670,23 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let baseline = alternate(&build(None), &luma, &regions, n_regions, options.albedo);
     let has_mask = inputs.shadow_mask.is_some();
     let score_direction = |cone: &[Vec3]| -> (f64, f64, Vec<f32>) {
-        let column: Vec<f32> = samples
+        // Per sample: the cone's light with cast shadows, and without.
+        let (column, open): (Vec<f32>, Vec<f32>) = samples
             .par_iter()
             .map(|s| {
-                let mut acc = 0.0;
+                let (mut lit, mut open) = (0.0, 0.0);
                 for d in cone {
-                    acc += term(
-                        &Light::directional((-*d).to_array(), 0.0, [1.0; 3]),
-                        s,
-                        &occluders,
-                        reach,
-                    );
+                    let light = Light::directional((-*d).to_array(), 0.0, [1.0; 3]);
+                    if let Some((shade, l, max_dist)) = geometry(&light, s, reach) {
+                        open += shade;
+                        if visible(&occluders, s.p, s.n, l, max_dist) {
+                            lit += shade;
+                        }
+                    }
                 }
-                acc / cone.len() as f32
+                (lit / cone.len() as f32, open / cone.len() as f32)
             })
-            .collect();
+            .unzip();
         let fit = alternate(
             &build(Some(&column)),
             &luma,
@@ -682,16 +694,16 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             n_regions,
             options.albedo,
         );
-        // Predicted cast shadow against the mask on the samples facing the light, as a fraction
-        // of all samples (ambient alone, facing nothing, disagrees nowhere).
+        // Predicted cast shadow (the part of the cone hidden from the sample) against the mask on
+        // the samples facing the light, as a fraction of all samples (ambient alone, facing
+        // nothing, disagrees nowhere).
         let disagreement = if has_mask {
             let sum: f64 = samples
                 .iter()
-                .zip(&column)
-                .map(|(s, c)| {
-                    let cos = s.n.dot(cone[0]);
-                    if cos > 0.15 {
-                        let predicted = 1.0 - (c / cos).clamp(0.0, 1.0);
+                .zip(column.iter().zip(&open))
+                .map(|(s, (lit, open))| {
+                    if s.n.dot(cone[0]) > 0.15 && *open > 0.0 {
+                        let predicted = 1.0 - (lit / open).clamp(0.0, 1.0);
                         (predicted - s.mask).abs() as f64
                     } else {
                         0.0
@@ -946,6 +958,56 @@ mod tests {
         // Without the noise margin the same floor shadows itself.
         let (lit_without, _) = agreement(0.0);
         assert!(lit_without < lit_ok - 0.05, "{lit_without} vs {lit_ok}");
+    }
+
+    #[test]
+    fn a_lamp_seen_in_the_photo_does_not_shadow_its_own_light() {
+        // A wall at 4 m and, in front of it, a bulb of radius 0.1 m centred at (0, 0.5, −3): its
+        // front surface is in the depth map, and the light sits behind it, at its centre.
+        let camera = Camera::from_focal(100.0, 80, 60).unwrap();
+        let centre = Vec3::new(0.0, 0.5, -3.0);
+        let depth = Raster::from_fn(80, 60, |x, y| {
+            let d = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+            let (b, c) = (d.dot(centre), centre.length_squared() - 0.01);
+            let disc = b * b - d.length_squared() * c;
+            let t = if disc >= 0.0 {
+                (b - disc.sqrt()) / d.length_squared()
+            } else {
+                -4.0 / d.z
+            };
+            -(d * t).z
+        });
+        let occluders = Occluders {
+            depth: &depth,
+            camera: &camera,
+            sigma_w: 0.0,
+        };
+        let bulb = Light {
+            kind: LightKind::Point,
+            position: centre.to_array(),
+            direction: [0.0, -1.0, 0.0],
+            size: 0.2,
+            intensity: [1.0; 3],
+            confidence: 1.0,
+        };
+        // A floor point in view straight below the bulb: nothing lies between them but the
+        // bulb's own surface.
+        let floor = Sample {
+            p: Vec3::new(0.0, -0.5, -3.0),
+            n: Vec3::Y,
+            rgb: [0.5; 3],
+            region: 0,
+            mask: 0.0,
+        };
+        let shade = term(&bulb, &floor, &occluders, 10.0);
+        assert!((shade - 1.0).abs() < 1e-4, "{shade}");
+        // A point behind the wall is still shadowed by it.
+        let behind = Sample {
+            p: Vec3::new(0.0, 0.3, -4.5),
+            n: Vec3::Z,
+            ..floor
+        };
+        assert_eq!(term(&bulb, &behind, &occluders, 10.0), 0.0);
     }
 
     fn room(to_light: Vec3, ambient: f32, irradiance: f32) -> Room {

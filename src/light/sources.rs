@@ -1,5 +1,6 @@
-//! Light sources seen in the photo (thesis §3.3.4): bright pixels grouped into blobs, each an
-//! area light with a 3D position, size, colour and intensity.
+//! Light sources seen in the photo (thesis §3.3.4): bright pixels grouped into blobs, each a light
+//! with a 3D position, size, colour and intensity: a disc where the blob is a flat panel, a
+//! sphere where it is a bulb (its normals spread) or has no depth of its own.
 //!
 //! Bright means saturated in an LDR photo (the largest channel ≥ `saturation`) and, in an HDR photo
 //! (some pixel above 1.0, the photo's white), a luminance of at least `hdr_fraction` of the
@@ -104,14 +105,20 @@ impl SourceOptions {
     }
 }
 
+/// Least length of a blob's mean unit normal for it to be a flat emitter (a disc); below it (a
+/// bulb: 2/3 over the visible half of a sphere) or without the blob's own depth it is a sphere.
+const PANEL_COHERENCE: f32 = 0.9;
+
 /// Finds the light sources visible in a linear RGB photo.
 ///
 /// `depth` (metres along the optical axis, NaN/inf = unknown) places each light; without depth, or
 /// where a blob and its surroundings have none, the light goes on its pixel ray at
-/// `missing_depth_m` (or the far plane) with half the confidence. Each light is an
-/// [`LightKind::Area`] disc whose diameter matches the blob's area at that depth, facing away from
-/// the surface it sits on (or, without normals, down along −up), with radiant intensity
-/// `mean radiance × disc area`. A saturated LDR blob only gives a lower bound of its radiance;
+/// `missing_depth_m` (or the far plane) with half the confidence. A blob whose own depth is measured
+/// and whose normals agree (a ceiling panel, a screen) becomes an [`LightKind::Area`] disc facing
+/// away from that surface; any other blob (a bulb, whose normals spread over a sphere, or a blob
+/// without its own depth) becomes a [`LightKind::Point`] sphere that emits every way, its centre
+/// a radius behind the measured front surface. Either way the diameter matches the blob's area at
+/// that depth and the radiant intensity is `mean radiance × that area`. A saturated LDR blob only gives a lower bound of its radiance;
 /// [`crate::light::fit_lights`] rescales in-view lights from the shading they cause.
 ///
 /// # Errors
@@ -186,6 +193,7 @@ pub fn detect_sources(
         let (mut cu, mut cv) = (0.0f64, 0.0f64);
         let mut depths = Vec::new();
         let mut normal_sum = Vec3::ZERO;
+        let mut normal_count = 0usize;
         for &(x, y) in group {
             let c = clean(*photo.get(x, y));
             for k in 0..3 {
@@ -200,7 +208,11 @@ pub fn detect_sources(
                 depths.push(z);
             }
             if let Some(n) = &normals {
-                normal_sum += Vec3::from(*n.get(x, y));
+                let normal = Vec3::from(*n.get(x, y));
+                if normal.length() > 0.5 {
+                    normal_sum += normal;
+                    normal_count += 1;
+                }
             }
         }
         let n = group.len() as f64;
@@ -224,7 +236,8 @@ pub fn detect_sources(
             values.select_nth_unstable_by(mid, f32::total_cmp);
             values[mid]
         };
-        let (z, confidence) = if depths.len() * 4 >= group.len() {
+        let own_depth = depths.len() * 4 >= group.len();
+        let (z, confidence) = if own_depth {
             (median(depths), 0.8)
         } else if !ring_depths.is_empty() {
             // Saturated blobs often have no stereo depth: the lamp sits on what surrounds it.
@@ -238,18 +251,39 @@ pub fn detect_sources(
         // Pixel footprint at depth z: the disc of the blob's area.
         let area_m2 = n as f32 * (z / camera.fx) * (z / camera.fy);
         let diameter = 2.0 * (area_m2 / std::f32::consts::PI).sqrt();
-        let axis = if surface_normal.length() > 0.5 {
-            surface_normal
+        // A flat emitter's pixels share one normal; a bulb's spread over the visible half of a
+        // sphere, whose mean unit normal (pixels weigh by projected area) has length 2/3.
+        let coherence = if normal_count > 0 {
+            normal_sum.length() / normal_count as f32
         } else {
-            -up
+            0.0
         };
-        let light = Light {
-            kind: LightKind::Area,
-            position: position.to_array(),
-            direction: axis.to_array(),
-            size: diameter,
-            intensity: radiance.map(|l| l * area_m2),
-            confidence,
+        let light = if own_depth && coherence >= PANEL_COHERENCE {
+            Light {
+                kind: LightKind::Area,
+                position: position.to_array(),
+                direction: surface_normal.to_array(),
+                size: diameter,
+                intensity: radiance.map(|l| l * area_m2),
+                confidence,
+            }
+        } else {
+            // A bulb (or a blob whose own depth is unknown): a sphere that emits every way. Its
+            // measured depth is its front surface, so the centre lies a radius further along the
+            // pixel's ray.
+            let centre = if own_depth {
+                position + position.normalize_or_zero() * diameter / 2.0
+            } else {
+                position
+            };
+            Light {
+                kind: LightKind::Point,
+                position: centre.to_array(),
+                direction: (-up).to_array(),
+                size: diameter,
+                intensity: radiance.map(|l| l * area_m2),
+                confidence,
+            }
         };
         if light.validate().is_ok() {
             lights.push(light);
@@ -283,11 +317,12 @@ mod tests {
     }
 
     #[test]
-    fn a_lamp_becomes_one_area_light_at_its_depth() {
+    fn a_flat_lamp_becomes_one_area_light_at_its_depth() {
         let (photo, depth) = wall_with_lamp([1.0; 3]);
         let lights = detect_sources(&photo, Some(&depth), &camera(), &Default::default()).unwrap();
         assert_eq!(lights.len(), 1, "{lights:?}");
         let l = lights[0];
+        assert_eq!(l.kind, LightKind::Area);
         let expected = camera().unproject(35.0, 25.0, 3.0).unwrap();
         assert!(Vec3::from(l.position).distance(expected) < 1e-3, "{l:?}");
         // 100 px at 3 m with f = 100: 0.09 m², a disc of diameter 2·√(0.09/π).
@@ -298,10 +333,42 @@ mod tests {
     }
 
     #[test]
+    fn a_bulb_becomes_a_sphere_centred_behind_its_visible_surface() {
+        // A wall at 3 m and a bulb of radius 0.15 m centred 2.5 m away on the optical axis.
+        let cam = camera();
+        let centre = Vec3::new(0.0, 0.0, -2.5);
+        let radius = 0.15f32;
+        let hit = |x: usize, y: usize| {
+            let d = cam.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+            let (a, b) = (d.length_squared(), d.dot(centre));
+            let disc = b * b - a * (centre.length_squared() - radius * radius);
+            (disc >= 0.0).then(|| -(d * (b - disc.sqrt()) / a).z)
+        };
+        let photo = Raster::from_fn(120, 90, |x, y| {
+            if hit(x, y).is_some() {
+                [1.0; 3]
+            } else {
+                [0.2, 0.18, 0.15]
+            }
+        });
+        let depth = Raster::from_fn(120, 90, |x, y| hit(x, y).unwrap_or(3.0));
+        let lights = detect_sources(&photo, Some(&depth), &cam, &Default::default()).unwrap();
+        assert_eq!(lights.len(), 1, "{lights:?}");
+        let l = lights[0];
+        assert_eq!(l.kind, LightKind::Point, "{l:?}");
+        // The blob's depth is the front surface (2.35 m at its centre); the light is placed at
+        // the sphere's centre, within the pixel grid's error of the radius.
+        assert!(Vec3::from(l.position).distance(centre) < 0.04, "{l:?}");
+        assert!((l.size - 2.0 * radius).abs() < 0.04, "{l:?}");
+    }
+
+    #[test]
     fn hdr_lamp_without_depth_goes_to_the_far_distance() {
         let (photo, _) = wall_with_lamp([500.0, 400.0, 300.0]);
         let lights = detect_sources(&photo, None, &camera(), &Default::default()).unwrap();
         assert_eq!(lights.len(), 1);
+        // Nothing says it is flat: a sphere.
+        assert_eq!(lights[0].kind, LightKind::Point);
         assert!((-lights[0].position[2] - 20.0).abs() < 1e-3);
         assert!(lights[0].intensity[0] > lights[0].intensity[2]);
     }
