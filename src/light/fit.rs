@@ -13,7 +13,10 @@
 //! direction of the out-of-view light is searched over the sphere above the horizon (Fibonacci
 //! points, then a finer set around the best), scoring the relative RMS residual plus the
 //! disagreement between the predicted cast shadow and the shadow mask. Its angular size is chosen
-//! among a few cone widths by the same score (wider cones give softer predicted shadows).
+//! among a few cone widths by the same score (wider cones give softer predicted shadows). A
+//! direction is only a candidate when at least 10 % of the samples face it unoccluded within
+//! 75.5° (cos ≥ 0.25): of a light that only grazes what the photo shows, only intensity × a small
+//! cosine is measured, and an object facing it would be lit by an arbitrary extrapolation.
 //!
 //! Albedo and light intensity are only known up to a common factor: the fit fixes the median
 //! region albedo to `FitOptions::albedo` (0.5 by default). Colours come from the same fit per
@@ -151,6 +154,13 @@ pub struct LightFit {
     /// Number of sample pixels used.
     pub samples: usize,
 }
+
+/// A sample supports a directional light when it faces the light, unoccluded, at least this
+/// much (the cosine, 0.25: within 75.5° of the light).
+const SUPPORT_COSINE: f32 = 0.25;
+
+/// Fraction of the samples that must support a directional light for it to be inferred.
+const MIN_SUPPORT: f64 = 0.1;
 
 /// Largest relative residual of a fit that is still taken as an inference of the light.
 const MAX_EXPLAINED_RESIDUAL: f64 = 0.5;
@@ -714,11 +724,16 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         } else {
             0.0
         };
-        (
-            fit.residual + options.shadow_weight as f64 * disagreement,
-            disagreement,
-            column,
-        )
+        // A light is inferred only from surfaces it lights: one that reaches the photo's
+        // surfaces at grazing angles alone explains a faint gradient with any intensity, and
+        // lights an object facing it (what the renderer then shows) by that extrapolation.
+        let supported = column.iter().filter(|g| **g >= SUPPORT_COSINE).count();
+        let score = if (supported as f64) < MIN_SUPPORT * samples.len() as f64 {
+            f64::INFINITY
+        } else {
+            fit.residual + options.shadow_weight as f64 * disagreement
+        };
+        (score, disagreement, column)
     };
     let mut best: Option<(f64, Vec3)> = None;
     for d in fibonacci(options.directions, up, -0.05) {
@@ -1112,6 +1127,39 @@ mod tests {
             // report in docs/lights-eval.md).
             assert!(luminance(fit.main.intensity) > 0.0 && luminance(fit.ambient) > 0.0);
             assert!(fit.residual < 0.1, "{}", fit.residual);
+        }
+    }
+
+    #[test]
+    fn a_light_that_only_grazes_the_seen_surfaces_is_not_extrapolated() {
+        // Only the floor is given to the fit, and the light comes in low (cos 0.15–0.19 on the
+        // floor): only intensity × cos is measurable. Without the support rule the fit kept a
+        // light of 16.9 (0.2° above the horizon) for a true 2.0.
+        for to_light in [Vec3::new(0.3, 0.2, 1.0), Vec3::new(1.0, 0.15, 0.2)] {
+            let r = room(to_light, 0.15, 2.0);
+            let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
+            let floor = Raster::from_fn(regions.width(), regions.height(), |x, y| {
+                if *r.normals.get(x, y) == [0.0, 1.0, 0.0] {
+                    *regions.get(x, y)
+                } else {
+                    NO_REGION
+                }
+            });
+            let fit = fit_lights(
+                &inputs(&r, &floor, Some(&r.shadow)),
+                &[],
+                &Default::default(),
+            )
+            .unwrap();
+            // Either nothing is inferred, or a light near the true one within 2× of its
+            // intensity (a direction steep enough to be supported explains the floor as well).
+            assert!(luminance(fit.main.intensity) < 4.0, "{to_light}: {fit:?}");
+            if !fit.fallback_used {
+                let error = (-Vec3::from(fit.main.direction))
+                    .angle_between(to_light.normalize())
+                    .to_degrees();
+                assert!(error < 10.0, "{to_light}: {error}° {fit:?}");
+            }
         }
     }
 
