@@ -118,8 +118,9 @@ const PANEL_COHERENCE: f32 = 0.9;
 /// away from that surface; any other blob (a bulb, whose normals spread over a sphere, or a blob
 /// without its own depth) becomes a [`LightKind::Point`] sphere that emits every way, its centre
 /// a radius behind the measured front surface. Either way the diameter matches the blob's area at
-/// that depth and the radiant intensity is `mean radiance × that area`. A saturated LDR blob only gives a lower bound of its radiance;
-/// [`crate::light::fit_lights`] rescales in-view lights from the shading they cause.
+/// that depth and the radiant intensity is `mean radiance × that area`. A saturated LDR blob only
+/// gives a lower bound of its radiance; [`crate::light::fit_lights`] rescales in-view lights from
+/// the shading they cause.
 ///
 /// # Errors
 /// `InvalidArgument` for an empty photo, bad options or camera; `SizeMismatch` when the depth map
