@@ -7,16 +7,17 @@
 //! and `max(0, n·l_j) · V_j / r_j²` (times the disc's facing cosine) for a light at a position.
 //! Visibility `V_j` is traced through the depth map (a screen-space ray march from the point
 //! towards the light: occluded when the ray passes behind a visible surface by less than a
-//! thickness), so cast shadows are part of the model: a direction whose shadows fall where the
-//! photo has none explains the shading worse. For a fixed set of lights the fit alternates between
-//! the light intensities `E`, `A` (non-negative least squares) and the albedos `ρ_s`. The
-//! direction of the out-of-view light is searched over the sphere above the horizon (Fibonacci
-//! points, then a finer set around the best), scoring the relative RMS residual plus the
-//! disagreement between the predicted cast shadow and the shadow mask. Its angular size is chosen
-//! among a few cone widths by the same score (wider cones give softer predicted shadows). A
-//! direction is only a candidate when at least 10 % of the samples face it unoccluded within
-//! 75.5° (cos ≥ 0.25): of a light that only grazes what the photo shows, only intensity × a small
-//! cosine is measured, and an object facing it would be lit by an arbitrary extrapolation.
+//! thickness, unless that surface is the light's own body), so cast shadows are part of the model:
+//! a direction whose shadows fall where the photo has none explains the shading worse. For a fixed
+//! set of lights the fit alternates between the light intensities `E`, `A` (non-negative least
+//! squares) and the albedos `ρ_s`. The direction of the out-of-view light is searched over the
+//! sphere above the horizon (Fibonacci points, then a finer set around the best), scoring the
+//! relative RMS residual plus the disagreement between the predicted cast shadow (the part of the
+//! light hidden from a sample) and the shadow mask. Its angular size is chosen among a few cone
+//! widths by the same score (wider cones give softer predicted shadows). A direction is only a
+//! candidate when at least 10 % of the samples face it unoccluded within 75.5° (cos ≥ 0.25): of a
+//! light that only grazes what the photo shows, only intensity × a small cosine is measured, and an
+//! object facing it would be lit by an arbitrary extrapolation.
 //!
 //! Albedo and light intensity are only known up to a common factor: the fit fixes the median
 //! region albedo to `FitOptions::albedo` (0.5 by default). Colours come from the same fit per
@@ -196,8 +197,17 @@ const OCCLUSION_NOISE_SIGMAS: f32 = 1.0;
 
 /// Screen-space visibility from `p` (normal `n`) towards `l` up to `max_dist` metres. A ray point
 /// is occluded when it lies behind the depth map by more than 1 % + 1 cm plus the depth noise
-/// there (`σ_Z = Z²·σ_w`), within a thickness of 15 % + 5 cm.
-fn visible(occluders: &Occluders, p: Vec3, n: Vec3, l: Vec3, max_dist: f32) -> bool {
+/// there (`σ_Z = Z²·σ_w`), within a thickness of 15 % + 5 cm. `emitter` (centre, radius) is the
+/// light's own body: depth-map surfaces within 1.5 radii of its centre are the lamp seen in the
+/// photo, placed behind or on its own pixels, and do not occlude it.
+fn visible(
+    occluders: &Occluders,
+    p: Vec3,
+    n: Vec3,
+    l: Vec3,
+    max_dist: f32,
+    emitter: Option<(Vec3, f32)>,
+) -> bool {
     const STEPS: usize = 40;
     let camera = occluders.camera;
     let z0 = -p.z;
@@ -222,7 +232,14 @@ fn visible(occluders: &Occluders, p: Vec3, n: Vec3, l: Vec3, max_dist: f32) -> b
         if zs.is_finite() && zs > 0.0 {
             let behind = zq - zs - noise(zs);
             if behind > zs * 0.01 + 0.01 && behind < zs * 0.15 + 0.05 {
-                return false;
+                let own_body = emitter.is_some_and(|(centre, radius)| {
+                    camera
+                        .unproject(uv.x, uv.y, zs)
+                        .is_some_and(|surface| surface.distance(centre) <= 1.5 * radius)
+                });
+                if !own_body {
+                    return false;
+                }
             }
         }
     }
@@ -247,19 +264,23 @@ fn geometry(light: &Light, s: &Sample, reach: f32) -> Option<(f32, Vec3, f32)> {
             } else {
                 1.0
             };
-            // The march stops short of the emitter's own surface: a light placed from the
-            // depth of its visible pixels sits behind them, and would shadow itself.
-            let clear = (dist - light.size).max(0.0) * 0.95;
-            (facing / (dist * dist).max(1e-4), clear.min(reach))
+            (facing / (dist * dist).max(1e-4), (dist * 0.95).min(reach))
         }
     };
     (falloff > 0.0).then_some((cos * falloff, l, max_dist))
 }
 
+/// The body of a light at a position (centre, radius), for [`visible`].
+fn body(light: &Light) -> Option<(Vec3, f32)> {
+    (light.kind != LightKind::Directional).then(|| (Vec3::from(light.position), 0.5 * light.size))
+}
+
 /// Geometric term of a light at a sample, cast shadows included.
 fn term(light: &Light, s: &Sample, occluders: &Occluders, reach: f32) -> f32 {
     match geometry(light, s, reach) {
-        Some((shade, l, max_dist)) if visible(occluders, s.p, s.n, l, max_dist) => shade,
+        Some((shade, l, max_dist)) if visible(occluders, s.p, s.n, l, max_dist, body(light)) => {
+            shade
+        }
         _ => 0.0,
     }
 }
@@ -689,7 +710,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
                     let light = Light::directional((-*d).to_array(), 0.0, [1.0; 3]);
                     if let Some((shade, l, max_dist)) = geometry(&light, s, reach) {
                         open += shade;
-                        if visible(&occluders, s.p, s.n, l, max_dist) {
+                        if visible(&occluders, s.p, s.n, l, max_dist, None) {
                             lit += shade;
                         }
                     }
@@ -697,6 +718,13 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
                 (lit / cone.len() as f32, open / cone.len() as f32)
             })
             .unzip();
+        // A light is inferred only from surfaces it lights: one that reaches the photo's
+        // surfaces at grazing angles alone explains a faint gradient with any intensity, and
+        // lights an object facing it (what the renderer then shows) by that extrapolation.
+        let supported = column.iter().filter(|g| **g >= SUPPORT_COSINE).count();
+        if (supported as f64) < MIN_SUPPORT * samples.len() as f64 {
+            return (f64::INFINITY, 0.0, column);
+        }
         let fit = alternate(
             &build(Some(&column)),
             &luma,
@@ -724,16 +752,11 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         } else {
             0.0
         };
-        // A light is inferred only from surfaces it lights: one that reaches the photo's
-        // surfaces at grazing angles alone explains a faint gradient with any intensity, and
-        // lights an object facing it (what the renderer then shows) by that extrapolation.
-        let supported = column.iter().filter(|g| **g >= SUPPORT_COSINE).count();
-        let score = if (supported as f64) < MIN_SUPPORT * samples.len() as f64 {
-            f64::INFINITY
-        } else {
-            fit.residual + options.shadow_weight as f64 * disagreement
-        };
-        (score, disagreement, column)
+        (
+            fit.residual + options.shadow_weight as f64 * disagreement,
+            disagreement,
+            column,
+        )
     };
     let mut best: Option<(f64, Vec3)> = None;
     for d in fibonacci(options.directions, up, -0.05) {
@@ -949,7 +972,7 @@ mod tests {
                     if n != Vec3::Y {
                         continue;
                     }
-                    let visible = visible(&occluders, p, n, to_light, 6.0);
+                    let visible = visible(&occluders, p, n, to_light, 6.0, None);
                     if *r.shadow.get(x, y) > 0.5 {
                         shadowed += 1;
                         shadowed_seen += usize::from(!visible);
@@ -1016,6 +1039,16 @@ mod tests {
         };
         let shade = term(&bulb, &floor, &occluders, 10.0);
         assert!((shade - 1.0).abs() < 1e-4, "{shade}");
+        // The wall around and behind the bulb sees it past the bulb's own front surface.
+        for k in 0..8 {
+            let a = k as f32 * std::f32::consts::TAU / 8.0;
+            let wall = Sample {
+                p: Vec3::new(0.4 * a.cos(), 0.5 + 0.4 * a.sin(), -4.0),
+                n: Vec3::Z,
+                ..floor
+            };
+            assert!(term(&bulb, &wall, &occluders, 10.0) > 0.0, "{}", wall.p);
+        }
         // A point behind the wall is still shadowed by it.
         let behind = Sample {
             p: Vec3::new(0.0, 0.3, -4.5),

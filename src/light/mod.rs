@@ -4,7 +4,7 @@
 //! |---|---|
 //! | [`model`] | the shared lighting types: [`Light`], [`Sh9`], [`CubeMap`] and the cube-face convention |
 //! | [`shadow_mask`](mod@shadow_mask) | where the photo already has cast shadows (thesis Algorithm 5 and a chromaticity method) |
-//! | [`sources`] | light sources seen in the photo: bright blobs → area lights |
+//! | [`sources`] | light sources seen in the photo: bright blobs → area discs or sphere (point) lights |
 //! | [`environment`] | HDR radiance around the insertion point (photo re-projection, host maps) and its SH9 |
 //! | [`estimate`] | every stage in one call, for the Scene and the CLI |
 //! | [`fit`] | inverse rendering: the out-of-view light and ambient that explain the shading and shadows |

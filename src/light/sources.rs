@@ -116,8 +116,8 @@ const PANEL_COHERENCE: f32 = 0.9;
 /// `missing_depth_m` (or the far plane) with half the confidence. A blob whose own depth is measured
 /// and whose normals agree (a ceiling panel, a screen) becomes an [`LightKind::Area`] disc facing
 /// away from that surface; any other blob (a bulb, whose normals spread over a sphere, or a blob
-/// without its own depth) becomes a [`LightKind::Point`] sphere that emits every way, its centre
-/// a radius behind the measured front surface. Either way the diameter matches the blob's area at
+/// without its own depth) becomes a [`LightKind::Point`] sphere that emits every way: with its
+/// own depth, centred a radius behind its median depth, else where a disc would be. Either way the diameter matches the blob's area at
 /// that depth and the radiant intensity is `mean radiance × that area`. A saturated LDR blob only
 /// gives a lower bound of its radiance; [`crate::light::fit_lights`] rescales in-view lights from
 /// the shading they cause.
@@ -270,8 +270,10 @@ pub fn detect_sources(
             }
         } else {
             // A bulb (or a blob whose own depth is unknown): a sphere that emits every way. Its
-            // measured depth is its front surface, so the centre lies a radius further along the
-            // pixel's ray.
+            // measured depth is on its visible surface, so the centre lies a radius further along
+            // the pixel's ray. (The median of that surface is a little behind its front; the
+            // nearest depths are the stereo's least reliable on a saturated blob, so the median
+            // is kept.)
             let centre = if own_depth {
                 position + position.normalize_or_zero() * diameter / 2.0
             } else {
@@ -357,8 +359,8 @@ mod tests {
         assert_eq!(lights.len(), 1, "{lights:?}");
         let l = lights[0];
         assert_eq!(l.kind, LightKind::Point, "{l:?}");
-        // The blob's depth is the front surface (2.35 m at its centre); the light is placed at
-        // the sphere's centre, within the pixel grid's error of the radius.
+        // The blob's median depth lies a little behind its front (2.35 m) and its area gives a
+        // diameter a little small, so the centre lands within 4 cm of the sphere's.
         assert!(Vec3::from(l.position).distance(centre) < 0.04, "{l:?}");
         assert!((l.size - 2.0 * radius).abs() < 0.04, "{l:?}");
     }

@@ -174,8 +174,10 @@ pub(crate) fn plan(
                 .fold(0.0f32, f32::max)
                 * 1.01;
             let far = far.max(f32::MIN_POSITIVE * 1e6);
-            // The depth buffer is reversed f32, so a tiny near plane costs no precision.
-            let near = far * 1e-6;
+            // The depth buffer is reversed f32, so a tiny near plane costs no precision. A light
+            // with a body (a bulb seen in the photo sits a radius behind its own meshed front)
+            // clips what lies within its body so that the lamp does not shadow its own light.
+            let near = (far * 1e-6).max((0.75 * light.size).min(0.1 * far));
             let (centre, radius) = bounding_sphere(&artefacts);
             let to_centre = centre - pos;
             let dist = to_centre.length();
@@ -297,6 +299,32 @@ mod tests {
         let top = project(&v, Vec3::new(0.0, 0.2, -2.0)).z;
         let bottom = project(&v, Vec3::new(0.0, 0.0, -2.0)).z;
         assert!(top > bottom);
+    }
+
+    #[test]
+    fn a_bulb_does_not_shadow_its_own_light() {
+        // A bulb of diameter 0.3 m at 5 m: its own meshed surface (within its radius) lies in
+        // front of the near plane; a bare point light keeps a near plane at ~0.
+        let art = Aabb {
+            min: Vec3::splat(-0.5),
+            max: Vec3::splat(0.5),
+        };
+        let mut light = Light::directional([0.0, -1.0, 0.0], 0.0, [1.0; 3]);
+        light.kind = LightKind::Point;
+        light.position = [0.0, 5.0, 0.0];
+        light.size = 0.3;
+        let LightShadowPlan::Views(views, _) = plan(&light, &geometry(art, None), 512, 1) else {
+            panic!()
+        };
+        assert!(
+            views.iter().all(|v| v.near > 0.15 && v.near < 4.0),
+            "{views:?}"
+        );
+        light.size = 0.0;
+        let LightShadowPlan::Views(views, _) = plan(&light, &geometry(art, None), 512, 1) else {
+            panic!()
+        };
+        assert!(views.iter().all(|v| v.near < 1e-3), "{views:?}");
     }
 
     #[test]
