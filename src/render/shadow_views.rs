@@ -301,10 +301,8 @@ mod tests {
         assert!(top > bottom);
     }
 
-    #[test]
-    fn a_bulb_does_not_shadow_its_own_light() {
-        // A bulb of diameter 0.3 m at 5 m: its own meshed surface (within its radius) lies in
-        // front of the near plane; a bare point light keeps a near plane at ~0.
+    /// A unit box at the origin and a point light 5 m above it.
+    fn box_under_a_point_light() -> (Aabb, Light) {
         let art = Aabb {
             min: Vec3::splat(-0.5),
             max: Vec3::splat(0.5),
@@ -312,6 +310,14 @@ mod tests {
         let mut light = Light::directional([0.0, -1.0, 0.0], 0.0, [1.0; 3]);
         light.kind = LightKind::Point;
         light.position = [0.0, 5.0, 0.0];
+        (art, light)
+    }
+
+    #[test]
+    fn a_bulb_does_not_shadow_its_own_light() {
+        // A bulb of diameter 0.3 m at 5 m: its own meshed surface (within its radius) lies in
+        // front of the near plane; a bare point light keeps a near plane at ~0.
+        let (art, mut light) = box_under_a_point_light();
         light.size = 0.3;
         let LightShadowPlan::Views(views, _) = plan(&light, &geometry(art, None), 512, 1) else {
             panic!()
@@ -329,13 +335,7 @@ mod tests {
 
     #[test]
     fn point_light_far_away_gets_one_frustum_and_inside_gets_a_cube() {
-        let art = Aabb {
-            min: Vec3::splat(-0.5),
-            max: Vec3::splat(0.5),
-        };
-        let mut light = Light::directional([0.0, -1.0, 0.0], 0.0, [1.0; 3]);
-        light.kind = LightKind::Point;
-        light.position = [0.0, 5.0, 0.0];
+        let (art, mut light) = box_under_a_point_light();
         let LightShadowPlan::Views(views, _) = plan(&light, &geometry(art, None), 512, 1) else {
             panic!()
         };
