@@ -285,6 +285,25 @@ fn term(light: &Light, s: &Sample, occluders: &Occluders, reach: f32) -> f32 {
     }
 }
 
+/// Mean disagreement between the shadow a light predicts on each sample (the part of it hidden
+/// from the sample: 1 − lit ÷ unoccluded term) and the mask, over the samples facing `towards`
+/// (cos > 0.15), as a fraction of all samples.
+fn shadow_disagreement(samples: &[Sample], lit: &[f32], open: &[f32], towards: Vec3) -> f64 {
+    let sum: f64 = samples
+        .iter()
+        .zip(lit.iter().zip(open))
+        .map(|(s, (lit, open))| {
+            if s.n.dot(towards) > 0.15 && *open > 0.0 {
+                let predicted = 1.0 - (lit / open).clamp(0.0, 1.0);
+                (predicted - s.mask).abs() as f64
+            } else {
+                0.0
+            }
+        })
+        .sum();
+    sum / samples.len().max(1) as f64
+}
+
 /// Solves the augmented system `[A | b]` (Gauss–Jordan with partial pivoting; a singular column
 /// gets 0).
 fn solve(mut a: Vec<Vec<f64>>) -> Vec<f64> {
@@ -736,19 +755,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         // the samples facing the light, as a fraction of all samples (ambient alone, facing
         // nothing, disagrees nowhere).
         let disagreement = if has_mask {
-            let sum: f64 = samples
-                .iter()
-                .zip(column.iter().zip(&open))
-                .map(|(s, (lit, open))| {
-                    if s.n.dot(cone[0]) > 0.15 && *open > 0.0 {
-                        let predicted = 1.0 - (lit / open).clamp(0.0, 1.0);
-                        (predicted - s.mask).abs() as f64
-                    } else {
-                        0.0
-                    }
-                })
-                .sum();
-            sum / samples.len().max(1) as f64
+            shadow_disagreement(&samples, &column, &open, cone[0])
         } else {
             0.0
         };
@@ -1056,6 +1063,28 @@ mod tests {
             ..floor
         };
         assert_eq!(term(&bulb, &behind, &occluders, 10.0), 0.0);
+    }
+
+    #[test]
+    fn the_predicted_shadow_is_the_hidden_part_of_the_light() {
+        let sample = |mask: f32| Sample {
+            p: Vec3::new(0.0, -1.0, -3.0),
+            n: Vec3::Y,
+            rgb: [0.5; 3],
+            region: 0,
+            mask,
+        };
+        // A wide cone whose directions' cosines average 0.8 on a sample that sees all of it: no
+        // predicted shadow, whatever the cosine of the cone's centre (1 here).
+        let samples = [sample(0.0), sample(1.0), sample(0.0)];
+        let lit = [0.8, 0.0, 0.4];
+        let open = [0.8, 0.8, 0.8];
+        // Agreement on the first two; the third is half hidden against an unshadowed mask.
+        let d = shadow_disagreement(&samples, &lit, &open, Vec3::Y);
+        assert!((d - 0.5 / 3.0).abs() < 1e-6, "{d}");
+        // Samples facing away from the light do not count.
+        let d = shadow_disagreement(&samples, &lit, &open, -Vec3::Y);
+        assert_eq!(d, 0.0);
     }
 
     fn room(to_light: Vec3, ambient: f32, irradiance: f32) -> Room {
