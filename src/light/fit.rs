@@ -197,9 +197,8 @@ const OCCLUSION_NOISE_SIGMAS: f32 = 1.0;
 
 /// Screen-space visibility from `p` (normal `n`) towards `l` up to `max_dist` metres. A ray point
 /// is occluded when it lies behind the depth map by more than 1 % + 1 cm plus the depth noise
-/// there (`σ_Z = Z²·σ_w`), within a thickness of 15 % + 5 cm. `emitter` (centre, radius) is the
-/// light's own body: depth-map surfaces within 1.5 radii of its centre are the lamp seen in the
-/// photo, placed behind or on its own pixels, and do not occlude it.
+/// there (`σ_Z = Z²·σ_w`), within a thickness of 15 % + 5 cm. `emitter` (centre, reach) is the
+/// light's own body ([`Light::body_reach`]): depth-map surfaces within it do not occlude.
 fn visible(
     occluders: &Occluders,
     p: Vec3,
@@ -232,10 +231,10 @@ fn visible(
         if zs.is_finite() && zs > 0.0 {
             let behind = zq - zs - noise(zs);
             if behind > zs * 0.01 + 0.01 && behind < zs * 0.15 + 0.05 {
-                let own_body = emitter.is_some_and(|(centre, radius)| {
+                let own_body = emitter.is_some_and(|(centre, reach)| {
                     camera
                         .unproject(uv.x, uv.y, zs)
-                        .is_some_and(|surface| surface.distance(centre) <= 1.5 * radius)
+                        .is_some_and(|surface| surface.distance(centre) <= reach)
                 });
                 if !own_body {
                     return false;
@@ -270,9 +269,9 @@ fn geometry(light: &Light, s: &Sample, reach: f32) -> Option<(f32, Vec3, f32)> {
     (falloff > 0.0).then_some((cos * falloff, l, max_dist))
 }
 
-/// The body of a light at a position (centre, radius), for [`visible`].
+/// The body of a light at a position (centre, reach), for [`visible`].
 fn body(light: &Light) -> Option<(Vec3, f32)> {
-    (light.kind != LightKind::Directional).then(|| (Vec3::from(light.position), 0.5 * light.size))
+    (light.kind != LightKind::Directional).then(|| (Vec3::from(light.position), light.body_reach()))
 }
 
 /// Geometric term of a light at a sample, cast shadows included.

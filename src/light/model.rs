@@ -122,6 +122,16 @@ impl Light {
         Ok(())
     }
 
+    /// How far from a positional light's centre its own body reaches, metres: 1.5 radii (0 for a
+    /// directional light). A lamp seen in the photo sits behind or on its own pixels, so surfaces
+    /// within this distance are the lamp itself and must not shadow its light.
+    pub fn body_reach(&self) -> f32 {
+        match self.kind {
+            LightKind::Directional => 0.0,
+            LightKind::Point | LightKind::Area => 0.75 * self.size,
+        }
+    }
+
     /// The unit direction from a surface point `p` towards the light, and the distance to it
     /// (infinite for a directional light).
     pub fn towards(&self, p: Vec3) -> (Vec3, f32) {

@@ -177,7 +177,7 @@ pub(crate) fn plan(
             // The depth buffer is reversed f32, so a tiny near plane costs no precision. A light
             // with a body (a bulb seen in the photo sits a radius behind its own meshed front)
             // clips what lies within its body so that the lamp does not shadow its own light.
-            let near = (far * 1e-6).max((0.75 * light.size).min(0.1 * far));
+            let near = (far * 1e-6).max(light.body_reach().min(0.1 * far));
             let (centre, radius) = bounding_sphere(&artefacts);
             let to_centre = centre - pos;
             let dist = to_centre.length();
