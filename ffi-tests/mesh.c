@@ -233,6 +233,37 @@ int main(void) {
     CHECK_STATUS(scene, plx_scene_mesh(scene, &mesh), PLX_STATUS_OK);
     CHECK(mesh.index_count / 3 <= 100 && mesh.index_count > 0);
     for (size_t i = 0; i < mesh.index_count; i++) CHECK(mesh.indices[i] < mesh.vertex_count);
+    /* Normals: on a detected surface the plane's (default), else each vertex's own fit. A depth
+     * ripple of 0.3 % scatters the own fits on the floor. */
+    CHECK_STATUS(NULL, plx_mesh_options_init(&mo), PLX_STATUS_OK);
+    CHECK(mo.snap_to_surfaces == 1);
+    static float rippled[W * H];
+    for (int i = 0; i < W * H; i++) rippled[i] = depth[i] * (1.0f + 0.003f * sinf(7.0f * i));
+    CHECK_STATUS(scene, plx_scene_set_depth(scene, rippled, W, H, W * 4, NULL, 0, &cam),
+                 PLX_STATUS_OK);
+    for (int snap = 1; snap >= 0; snap--) {
+        mo.snap_to_surfaces = (uint32_t)snap;
+        CHECK_STATUS(scene, plx_scene_set_mesh_options(scene, &mo), PLX_STATUS_OK);
+        CHECK_STATUS(scene, plx_scene_mesh(scene, &mesh), PLX_STATUS_OK);
+        /* Floor vertices in the bottom-left corner, clear of the box: how many share one normal. */
+        size_t floor = 0, most_alike = 0;
+        for (size_t v = 0; v < mesh.vertex_count; v++) {
+            if (mesh.uvs[2 * v] > 0.3f || mesh.uvs[2 * v + 1] < 0.85f) continue;
+            floor++;
+            const float *a = mesh.normals + 3 * v;
+            size_t alike = 0;
+            for (size_t u = 0; u < mesh.vertex_count; u++) {
+                if (mesh.uvs[2 * u] > 0.3f || mesh.uvs[2 * u + 1] < 0.85f) continue;
+                const float *b = mesh.normals + 3 * u;
+                alike += a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+            }
+            if (alike > most_alike) most_alike = alike;
+        }
+        CHECK(floor > 50);
+        if (snap) CHECK(most_alike * 10 >= floor * 9); /* the floor plane's normal */
+        else CHECK(most_alike * 2 < floor);            /* each its own */
+    }
+    CHECK_STATUS(scene, plx_scene_set_depth(scene, depth, W, H, W * 4, NULL, 0, &cam), PLX_STATUS_OK);
     mo.step = 0;
     CHECK_STATUS(scene, plx_scene_set_mesh_options(scene, &mo), PLX_STATUS_INVALID_ARGUMENT);
     CHECK_MESSAGE(scene, "step");

@@ -388,6 +388,9 @@ typedef struct plx_mesh_options {
   // Simplify to at most this many triangles (flat regions coarse, edges fine); 0 = keep the
   // full grid (default).
   uint32_t max_triangles;
+  // Nonzero (default): the vertices on a detected support surface (floor, table, wall) take
+  // the surface's normal; 0 keeps every vertex's own fitted normal.
+  uint32_t snap_to_surfaces;
 } plx_mesh_options;
 
 // A borrowed triangle mesh in library memory, in the camera (= world) frame of DESIGN.md

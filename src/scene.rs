@@ -173,6 +173,8 @@ pub struct Scene {
     camera: Product<Camera>,
     depth_buffer: Product<Raster<f32>>,
     grid_mesh: Product<crate::mesh::SceneMesh>,
+    /// The grid mesh with its normals snapped to the surfaces found on it.
+    snapped_mesh: Product<crate::mesh::SceneMesh>,
     mesh: Product<crate::mesh::SceneMesh>,
     bvh: Product<crate::mesh::Bvh>,
     surfaces: Product<crate::mesh::Surfaces>,
@@ -204,6 +206,7 @@ impl Scene {
             camera: Product::default(),
             depth_buffer: Product::default(),
             grid_mesh: Product::default(),
+            snapped_mesh: Product::default(),
             mesh: Product::default(),
             bvh: Product::default(),
             surfaces: Product::default(),

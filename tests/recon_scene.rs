@@ -759,3 +759,84 @@ fn no_surfaces_without_geometry_and_camera_up_as_fallback() {
     };
     assert!(detect_surfaces(&mesh, &camera, &bad).is_err());
 }
+
+#[test]
+fn mesh_normals_on_detected_surfaces_take_the_planes_and_object_sides_keep_theirs() {
+    // The noisy room of `planes_normals_and_gravity_survive_stereo_depth_noise`.
+    let room = room(320, 240, 280.0);
+    let noisy = with_disparity_noise(&room.depth, 280.0 * 0.12, 0.5, 0x5eed);
+    let mesh = SceneMesh::from_depth(&noisy, &room.camera, &MeshOptions::default()).unwrap();
+    let found = surfaces_of(&room, &mesh);
+    let options = SurfaceOptions::default();
+    let mut snapped = mesh.clone();
+    let replaced = found.snap_mesh_normals(
+        &mut snapped,
+        &room.camera,
+        options.membership_tolerance(),
+        options.membership_normal_tolerance_deg(),
+    );
+    assert!(replaced > mesh.vertex_count() / 2, "{replaced} snapped");
+    let median = |mut e: Vec<f32>| {
+        assert!(e.len() > 500, "{} vertices", e.len());
+        e.sort_by(f32::total_cmp);
+        e[e.len() / 2]
+    };
+    for label in [Label::Floor, Label::TableTop] {
+        let (mut before, mut after) = (Vec::new(), Vec::new());
+        for k in 0..mesh.vertex_count() {
+            let (x, y) = pixel_of(&room, mesh.uvs[k]);
+            if *room.labels.get(x, y) == label && interior(&room, x, y, 4) {
+                let err = |n: [f32; 3]| Vec3::from(n).angle_between(room.up()).to_degrees();
+                before.push(err(mesh.normals[k]));
+                after.push(err(snapped.normals[k]));
+            }
+        }
+        let (before, after) = (median(before), median(after));
+        // The planes are found within 3° (the test above); their normals replace the scatter.
+        assert!(
+            after < 1.5 && after < before / 2.0,
+            "{label:?}: median normal error {before}° → {after}°"
+        );
+    }
+    // The table's sides touch the floor and the top but face sideways: they keep their own
+    // normals (only where noise turned one within the angle test of a plane's, at the edges, may
+    // one take it).
+    let (mut sides, mut flattened) = (0, 0);
+    for k in 0..mesh.vertex_count() {
+        let (x, y) = pixel_of(&room, mesh.uvs[k]);
+        if *room.labels.get(x, y) == Label::TableSide && interior(&room, x, y, 2) {
+            sides += 1;
+            let n = Vec3::from(snapped.normals[k]);
+            flattened += (n.angle_between(room.up()).to_degrees() < 5.0) as usize;
+        }
+        // Tangents follow the new normals.
+        let t = Vec3::from_slice(&snapped.tangents[k][..3]);
+        assert!(t.dot(Vec3::from(snapped.normals[k])).abs() < 1e-3);
+    }
+    assert!(sides > 100, "{sides} side vertices");
+    assert!(
+        flattened * 50 < sides,
+        "{flattened} of {sides} side vertices flattened"
+    );
+    // A vertex off every plane, or facing away from the plane it lies on, keeps its normal.
+    let no_surfaces = Surfaces {
+        surfaces: Vec::new(),
+        ..found.clone()
+    };
+    let mut unchanged = mesh.clone();
+    assert_eq!(
+        no_surfaces.snap_mesh_normals(&mut unchanged, &room.camera, 0.02, 30.0),
+        0
+    );
+    assert_eq!(unchanged.normals, mesh.normals);
+    let mut turned = with_normals_turned(&mesh, glam::Quat::from_rotation_x(1.2));
+    let kept = turned.normals.clone();
+    found.snap_mesh_normals(&mut turned, &room.camera, 0.02, 30.0);
+    let same = turned
+        .normals
+        .iter()
+        .zip(&kept)
+        .filter(|(a, b)| Vec3::from(**a).angle_between(Vec3::from(**b)) < 1e-4)
+        .count();
+    assert!(same * 10 > turned.vertex_count() * 9, "{same} kept");
+}

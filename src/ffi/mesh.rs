@@ -245,6 +245,9 @@ pub struct plx_mesh_options {
     /// Simplify to at most this many triangles (flat regions coarse, edges fine); 0 = keep the
     /// full grid (default).
     pub max_triangles: u32,
+    /// Nonzero (default): the vertices on a detected support surface (floor, table, wall) take
+    /// the surface's normal; 0 keeps every vertex's own fitted normal.
+    pub snap_to_surfaces: u32,
 }
 
 /// Fills `options` with the defaults and its `size`.
@@ -264,6 +267,7 @@ pub unsafe extern "C" fn plx_mesh_options_init(options: *mut plx_mesh_options) -
             max_grazing_angle_deg: d.max_grazing_angle_deg,
             depth_noise: d.depth_noise,
             max_triangles: 0,
+            snap_to_surfaces: u32::from(d.snap_to_surfaces),
         };
         Ok(())
     })
@@ -294,6 +298,9 @@ unsafe fn read_mesh_options(options: *const plx_mesh_options) -> Result<MeshOpti
     if let Some(b) = word(offset_of!(plx_mesh_options, max_triangles)) {
         let budget = u32::from_ne_bytes(b);
         out.max_triangles = (budget > 0).then_some(budget as usize);
+    }
+    if let Some(b) = word(offset_of!(plx_mesh_options, snap_to_surfaces)) {
+        out.snap_to_surfaces = u32::from_ne_bytes(b) != 0;
     }
     Ok(out)
 }

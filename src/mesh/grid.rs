@@ -43,6 +43,11 @@ pub struct MeshOptions {
     pub depth_noise: f32,
     /// Simplify to at most this many triangles ([`super::simplify`]); `None` keeps the full grid.
     pub max_triangles: Option<usize>,
+    /// Give the vertices on a detected support surface the surface's normal (see
+    /// [`super::Surfaces::snap_mesh_normals`]). Default on. Applied by the
+    /// [`Scene`](crate::scene::Scene), which detects the surfaces on the unsnapped grid;
+    /// [`SceneMesh::from_depth`] alone knows no surfaces and ignores it.
+    pub snap_to_surfaces: bool,
 }
 
 impl Default for MeshOptions {
@@ -52,6 +57,7 @@ impl Default for MeshOptions {
             max_grazing_angle_deg: 85.0,
             depth_noise: 0.01,
             max_triangles: None,
+            snap_to_surfaces: true,
         }
     }
 }
@@ -670,6 +676,7 @@ mod property_tests {
                 } else {
                     None
                 },
+                ..MeshOptions::default()
             };
             let Ok(mesh) = SceneMesh::from_depth(&depth, &camera, &options) else {
                 continue;

@@ -87,6 +87,15 @@ impl SurfaceOptions {
         2.0 * self.distance_tolerance
     }
 
+    /// The angle (degrees) within which a mesh normal counts as the normal of a surface found
+    /// with these options, for [`Surfaces::snap_mesh_normals`]: twice `normal_tolerance_deg`, as
+    /// [`SurfaceOptions::membership_tolerance`] is for distance (the inliers' own normals spread
+    /// up to `normal_tolerance_deg`), and below 90° so that a box side standing on a floor never
+    /// takes the floor's normal.
+    pub fn membership_normal_tolerance_deg(&self) -> f32 {
+        (2.0 * self.normal_tolerance_deg).min(MAX_SNAP_ANGLE_DEG)
+    }
+
     /// Checks every field.
     ///
     /// # Errors
@@ -289,7 +298,60 @@ impl Surfaces {
         }
         replaced
     }
+
+    /// Gives every vertex of `mesh` (a grid mesh of `camera`'s image: its UVs locate each
+    /// vertex's pixel) that lies on a detected surface the surface's normal, and returns how many
+    /// it changed. A vertex lies on a surface when its point is within `distance_tolerance` × its
+    /// depth of the plane, its pixel inside the surface's image polygon, and its own normal within
+    /// `max_angle_deg` of the plane's; the first (largest) such surface wins. Tangents are
+    /// recomputed around the new normals.
+    ///
+    /// Why: a plane fitted to thousands of points knows its orientation far better than a local
+    /// fit to one vertex's neighbourhood of noisy stereo depth, and a support surface whose
+    /// normals scatter by a few degrees shades unevenly under a light. The angle test keeps the
+    /// vertices of objects that touch a plane (a box side on the floor, a rounded edge) their own
+    /// normals.
+    pub fn snap_mesh_normals(
+        &self,
+        mesh: &mut SceneMesh,
+        camera: &Camera,
+        distance_tolerance: f32,
+        max_angle_deg: f32,
+    ) -> usize {
+        if self.surfaces.is_empty() || mesh.normals.len() != mesh.positions.len() {
+            return 0;
+        }
+        let min_cos = max_angle_deg.to_radians().cos();
+        let size = Vec2::new(camera.width as f32, camera.height as f32);
+        let mut replaced = 0;
+        for ((position, normal), uv) in mesh
+            .positions
+            .iter()
+            .zip(mesh.normals.iter_mut())
+            .zip(&mesh.uvs)
+        {
+            let point = Vec3::from(*position);
+            let pixel = Vec2::from(*uv) * size;
+            let own = Vec3::from(*normal);
+            let on = self.surfaces.iter().find(|s| {
+                own.dot(s.normal) >= min_cos
+                    && s.distance(point).abs() <= distance_tolerance * -point.z
+                    && s.contains_pixel(pixel)
+            });
+            if let Some(s) = on {
+                *normal = s.normal.to_array();
+                replaced += 1;
+            }
+        }
+        if replaced > 0 {
+            mesh.recompute_tangents_keeping_normals();
+        }
+        replaced
+    }
 }
+
+/// Largest angle (degrees) between a mesh normal and the surface normal it is replaced by.
+const MAX_SNAP_ANGLE_DEG: f32 = 60.0;
 
 /// Finds the planar surfaces of a scene mesh (preferably the unsimplified grid, so that inlier
 /// counts are proportional to image area) and estimates the up vector.

@@ -316,8 +316,10 @@ impl Scene {
             })
     }
 
-    /// The scene mesh (product `mesh`): the depth grid cut at discontinuities, simplified to
-    /// [`MeshOptions::max_triangles`] when set. Sub-stages `mesh.grid` and `mesh.simplify`.
+    /// The scene mesh (product `mesh`): the depth grid cut at discontinuities, the normals of
+    /// its vertices on a detected support surface replaced by the surface's
+    /// ([`MeshOptions::snap_to_surfaces`]), simplified to [`MeshOptions::max_triangles`] when
+    /// set. Sub-stages `mesh.grid`, `surfaces`, `mesh.snap` and `mesh.simplify`.
     ///
     /// # Errors
     /// As [`Scene::depth`]; `InvalidArgument` when no triangle can be formed (no valid depth, an
@@ -330,10 +332,26 @@ impl Scene {
     }
 
     pub(super) fn mesh_traced(&mut self, base: &Base, trace: &mut Trace) -> Result<Arc<SceneMesh>> {
-        let grid = self.grid_mesh_traced(base, trace)?;
-        let budget = self.mesh_options().max_triangles;
+        let options = self.mesh_options();
+        let grid = if options.snap_to_surfaces {
+            self.snapped_mesh_traced(base, trace)?
+        } else {
+            trace.record(
+                "mesh.snap",
+                StageStatus::Skipped,
+                0.0,
+                "snap_to_surfaces off",
+            );
+            self.grid_mesh_traced(base, trace)?
+        };
+        let budget = options.max_triangles;
         let versions = [
             self.grid_mesh.generation,
+            if options.snap_to_surfaces {
+                self.snapped_mesh.generation + 1
+            } else {
+                0
+            },
             budget.map_or(0, |b| b as u64 + 1),
         ];
         self.mesh.get_or_share("mesh", &versions, trace, |trace| {
@@ -354,6 +372,27 @@ impl Scene {
                 }
             })
         })
+    }
+
+    /// The grid mesh with the normals of the vertices on a detected surface snapped to it
+    /// ([`Surfaces::snap_mesh_normals`]; sub-stage `mesh.snap`).
+    fn snapped_mesh_traced(&mut self, base: &Base, trace: &mut Trace) -> Result<Arc<SceneMesh>> {
+        let grid = self.grid_mesh_traced(base, trace)?;
+        let surfaces = self.surfaces_traced(base, trace)?;
+        let versions = [self.grid_mesh.generation, self.surfaces.generation];
+        let options = self.surface_options.value.unwrap_or_default();
+        let camera = base.1;
+        self.snapped_mesh
+            .get_or_compute("mesh.snap", &versions, trace, |_| {
+                let mut mesh = (*grid).clone();
+                surfaces.snap_mesh_normals(
+                    &mut mesh,
+                    &camera,
+                    options.membership_tolerance(),
+                    options.membership_normal_tolerance_deg(),
+                );
+                Ok(mesh)
+            })
     }
 
     /// The ray-query hierarchy over the scene mesh (product `bvh`).

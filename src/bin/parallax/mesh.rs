@@ -33,6 +33,10 @@ pub struct Args {
     /// Relative depth noise tolerated between neighbouring pixels.
     #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
     depth_noise: f32,
+    /// Keep every vertex's own fitted normal instead of giving the vertices on a detected
+    /// support surface (floor, table, wall) the surface's normal.
+    #[arg(long)]
+    no_snap: bool,
     /// Also write the point cloud (coloured with the photo) as PLY.
     #[arg(long, value_name = "FILE.ply")]
     out_points: Option<PathBuf>,
@@ -62,6 +66,7 @@ pub fn run(args: Args) -> Result<()> {
         max_grazing_angle_deg: args.max_angle,
         depth_noise: args.depth_noise,
         max_triangles: args.max_triangles,
+        snap_to_surfaces: !args.no_snap,
     })?;
     let spinner = args.common.spinner("building the scene mesh");
     let mesh = scene.mesh();

@@ -364,3 +364,51 @@ fn the_hosts_gravity_up_classifies_surfaces_and_stands_objects_along_it() {
     assert_eq!(surfaces.up_source, UpSource::Planes);
     assert!(surfaces.up.angle_between(Vec3::Y).to_degrees() < 3.0);
 }
+
+#[test]
+fn mesh_normals_snap_to_the_surfaces_unless_turned_off() {
+    // The analytic room with 0.3 % of deterministic depth ripple: the local fits scatter.
+    let rippled = Raster::from_fn(W as usize, H as usize, |x, y| {
+        let phase = (x * 7 + y * 13) as f32;
+        room_depth(x, y) * (1.0 + 0.003 * phase.sin())
+    });
+    let mut s = scene();
+    s.set_depth(rippled, None, Some(camera())).unwrap();
+    let snapped = s.mesh().unwrap();
+    assert_eq!(status(&s, "mesh.snap"), StageStatus::Computed);
+    let floor = s
+        .surfaces()
+        .unwrap()
+        .surfaces
+        .iter()
+        .find(|s| s.kind == SurfaceKind::Horizontal)
+        .expect("the floor is found")
+        .normal;
+    // The floor vertices away from the wall have the floor plane's normal, exactly (but for a
+    // few at the border of its image polygon).
+    let floor_vertices: Vec<usize> = (0..snapped.vertex_count())
+        .filter(|&k| snapped.uvs[k][1] * H as f32 > 45.0)
+        .collect();
+    let on_plane = floor_vertices
+        .iter()
+        .filter(|&&k| Vec3::from(snapped.normals[k]).angle_between(floor) < 1e-4)
+        .count();
+    assert!(
+        floor_vertices.len() > 500 && on_plane * 10 > floor_vertices.len() * 9,
+        "{on_plane} of {}",
+        floor_vertices.len()
+    );
+    s.set_mesh_options(MeshOptions {
+        snap_to_surfaces: false,
+        ..MeshOptions::default()
+    })
+    .unwrap();
+    let own = s.mesh().unwrap();
+    assert_eq!(status(&s, "mesh.snap"), StageStatus::Skipped);
+    assert_eq!(status(&s, "mesh.grid"), StageStatus::Reused);
+    let differ = floor_vertices
+        .iter()
+        .filter(|&&k| Vec3::from(own.normals[k]).angle_between(floor).to_degrees() > 0.1)
+        .count();
+    assert!(differ * 2 > floor_vertices.len(), "{differ} differ");
+}
