@@ -293,6 +293,60 @@ fn planes_normals_and_gravity_survive_stereo_depth_noise() {
     }
 }
 
+#[test]
+fn a_near_horizontal_plane_is_levelled_only_when_its_tilt_is_noise() {
+    // The noisy room: the table top's fitted tilt is noise, so it takes gravity's normal (the
+    // floor's, within the up estimate's error).
+    let room = room(320, 240, 280.0);
+    let noisy = with_disparity_noise(&room.depth, 280.0 * 0.12, 0.5, 0x5eed);
+    let mesh = SceneMesh::from_depth(&noisy, &room.camera, &MeshOptions::default()).unwrap();
+    let found = surfaces_of(&room, &mesh);
+    let horizontal: Vec<_> = found
+        .surfaces
+        .iter()
+        .filter(|s| s.kind == SurfaceKind::Horizontal)
+        .collect();
+    assert!(horizontal.len() >= 2, "{found:#?}");
+    for s in horizontal {
+        assert!(s.normal.angle_between(found.up) < 1e-4, "{s:#?}");
+    }
+
+    // A drawing board 7° off level above a floor, under the same noise: kept as tilted.
+    let camera = Camera::from_focal(280.0, 320, 240).unwrap();
+    let to_camera = Mat3::from_rotation_x(20f32.to_radians());
+    let board_normal = Mat3::from_rotation_x(7f32.to_radians()) * Vec3::Y;
+    let board_centre = Vec3::new(0.0, -0.7, -2.7);
+    let depth = Raster::from_fn(320, 240, |x, y| {
+        let dir_cam = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+        let dir = to_camera.transpose() * dir_cam;
+        let mut t = (FLOOR_Y / dir.y).max(0.0);
+        if t == 0.0 || !t.is_finite() {
+            t = f32::INFINITY;
+        }
+        let tb = board_normal.dot(board_centre) / board_normal.dot(dir);
+        let hit = dir * tb;
+        let local = hit - board_centre;
+        if tb > 0.0 && tb < t && local.x.abs() < 0.6 && local.z.abs() < 0.5 {
+            t = tb;
+        }
+        -(dir_cam * t).z
+    });
+    let noisy = with_disparity_noise(&depth, 280.0 * 0.12, 0.5, 0x5eed);
+    let mesh = SceneMesh::from_depth(&noisy, &camera, &MeshOptions::default()).unwrap();
+    let found = detect_surfaces(&mesh, &camera, &SurfaceOptions::default()).unwrap();
+    let up = to_camera * Vec3::Y;
+    let board = found
+        .surfaces
+        .iter()
+        .find(|s| {
+            let c = to_camera.transpose() * s.centroid;
+            (c - board_centre).length() < 0.3
+        })
+        .unwrap_or_else(|| panic!("no board: {found:#?}"));
+    let tilt = board.normal.angle_between(up).to_degrees();
+    assert!((tilt - 7.0).abs() < 1.5, "board tilt {tilt}°, true 7°");
+}
+
 /// The room's floor as a matcher that filled its near part by interpolation might give it: below
 /// image row `from_row`, floor depth bent away smoothly (up to 4 % too near at the bottom), with
 /// confidence 0 there and 1 elsewhere.
