@@ -399,7 +399,8 @@ typedef struct plx_mesh_options {
 typedef struct plx_mesh_view {
   // `3 · vertex_count` floats: x, y, z per vertex, metres.
   const float *positions;
-  // `3 · vertex_count` floats: unit smooth normals.
+  // `3 · vertex_count` floats: unit smooth normals (on a detected support surface the
+  // surface's normal, unless `snap_to_surfaces` is 0 in the mesh options).
   const float *normals;
   // `4 · vertex_count` floats: unit tangents along the photo's u, bitangent sign in w (glTF).
   const float *tangents;

@@ -345,6 +345,9 @@ fn a_near_horizontal_plane_is_levelled_only_when_its_tilt_is_noise() {
         .unwrap_or_else(|| panic!("no board: {found:#?}"));
     let tilt = board.normal.angle_between(up).to_degrees();
     assert!((tilt - 7.0).abs() < 1.5, "board tilt {tilt}°, true 7°");
+    // …and up comes from the level floor alone, not averaged with the board.
+    let up_err = found.up.angle_between(up).to_degrees();
+    assert!(up_err < 0.2, "up error {up_err}°");
 }
 
 /// The room's floor as a matcher that filled its near part by interpolation might give it: below

@@ -334,7 +334,8 @@ pub unsafe extern "C" fn plx_scene_set_mesh_options(
 pub struct plx_mesh_view {
     /// `3 · vertex_count` floats: x, y, z per vertex, metres.
     pub positions: *const f32,
-    /// `3 · vertex_count` floats: unit smooth normals.
+    /// `3 · vertex_count` floats: unit smooth normals (on a detected support surface the
+    /// surface's normal, unless `snap_to_surfaces` is 0 in the mesh options).
     pub normals: *const f32,
     /// `4 · vertex_count` floats: unit tangents along the photo's u, bitangent sign in w (glTF).
     pub tangents: *const f32,

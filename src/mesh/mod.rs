@@ -43,8 +43,10 @@ pub struct SceneMesh {
     /// Vertex positions, metres.
     pub positions: Vec<[f32; 3]>,
     /// Unit vertex normals, facing the camera. From [`SceneMesh::from_depth`]: the normal of a
-    /// plane fitted robustly to the depth around the vertex (see [`grid`]); otherwise smooth,
-    /// area-weighted over the triangles that share the vertex.
+    /// plane fitted robustly to the depth around the vertex (see [`grid`]), and in a
+    /// [`Scene`](crate::scene::Scene)'s mesh, on a detected support surface, that surface's normal
+    /// ([`Surfaces::snap_mesh_normals`]); otherwise smooth, area-weighted over the triangles that
+    /// share the vertex.
     pub normals: Vec<[f32; 3]>,
     /// Unit tangents along increasing `u` of the photo, with the bitangent sign in `w`.
     pub tangents: Vec<[f32; 4]>,

@@ -36,8 +36,9 @@
 //!
 //! "Up" is the inlier-weighted mean normal of the near-horizontal planes (normals within 35° of the
 //! camera's +Y, or of −Y for ceilings: the gravity prior of a camera pitched or rolled by less than
-//! that) that agree within 10° with the direction most of their points agree with; with no such
-//! plane it falls back to the camera's +Y (the image's "up", i.e. −image-y).
+//! that) that agree within 10° with the direction most of their points agree with, estimated once
+//! more from only those of them that level (a sloped plane says nothing about gravity); with no
+//! such plane it falls back to the camera's +Y (the image's "up", i.e. −image-y).
 
 use glam::{DVec3, Vec2, Vec3};
 
@@ -160,7 +161,8 @@ pub enum UpSource {
 /// A planar surface of the scene.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SupportSurface {
-    /// Unit normal, on the side facing the camera.
+    /// Unit normal, on the side facing the camera: the fitted plane's, or ±up exactly for a
+    /// near-horizontal plane that fits its points as well levelled (module docs).
     pub normal: Vec3,
     /// Mean of the inlier points, metres (on the plane).
     pub centroid: Vec3,
@@ -487,10 +489,19 @@ pub fn detect_surfaces_with_confidence(
         found.push((plane, piece));
     }
 
-    let (up, up_source) = estimate_up(&found, &points);
+    let (mut up, up_source) = estimate_up(&found, &points);
     // With the up of the planes themselves; a host's up (`Surfaces::with_host_up`) reclassifies
     // the planes but does not refit them.
     if up_source == UpSource::Planes {
+        // A plane that does not level is sloped: its normal says nothing about gravity.
+        let level: Vec<(Plane, Vec<usize>)> = found
+            .iter()
+            .filter(|(plane, piece)| levelled(plane, piece, &points, up).is_some())
+            .cloned()
+            .collect();
+        if let (refined, UpSource::Planes) = estimate_up(&level, &points) {
+            up = refined;
+        }
         for (plane, piece) in found.iter_mut() {
             if let Some(level) = levelled(plane, piece, &points, up) {
                 *plane = level;
