@@ -221,6 +221,8 @@ namespace Parallax
         public float MaxGrazingAngleDeg;
         public float DepthNoise;
         public uint MaxTriangles;
+        /// <summary>Nonzero (default): vertices on a detected support surface take its normal.</summary>
+        public uint SnapToSurfaces;
 
         /// <summary>The defaults (plx_mesh_options_init), Size set to this struct's size.</summary>
         public static PlxMeshOptions CreateDefault()
