@@ -248,12 +248,18 @@ fn with_disparity_noise(depth: &Raster<f32>, f_b: f32, sigma_d: f32, seed: u64) 
     })
 }
 
-#[test]
-fn planes_normals_and_gravity_survive_stereo_depth_noise() {
-    // 0.5 px of disparity noise with a 12 cm baseline: 2–8 % depth noise over the room.
+/// The room at 320×240 under 0.5 px of disparity noise with a 12 cm baseline (2–8 % depth noise
+/// over the room), and its mesh.
+fn noisy_room() -> (Room, SceneMesh) {
     let room = room(320, 240, 280.0);
     let noisy = with_disparity_noise(&room.depth, 280.0 * 0.12, 0.5, 0x5eed);
     let mesh = SceneMesh::from_depth(&noisy, &room.camera, &MeshOptions::default()).unwrap();
+    (room, mesh)
+}
+
+#[test]
+fn planes_normals_and_gravity_survive_stereo_depth_noise() {
+    let (room, mesh) = noisy_room();
     // Mesh normals on the floor and the table top (away from their edges).
     let mut errors = [Vec::new(), Vec::new()];
     for k in 0..mesh.vertex_count() {
@@ -297,9 +303,7 @@ fn planes_normals_and_gravity_survive_stereo_depth_noise() {
 fn a_near_horizontal_plane_is_levelled_only_when_its_tilt_is_noise() {
     // The noisy room: the table top's fitted tilt is noise, so it takes gravity's normal (the
     // floor's, within the up estimate's error).
-    let room = room(320, 240, 280.0);
-    let noisy = with_disparity_noise(&room.depth, 280.0 * 0.12, 0.5, 0x5eed);
-    let mesh = SceneMesh::from_depth(&noisy, &room.camera, &MeshOptions::default()).unwrap();
+    let (room, mesh) = noisy_room();
     let found = surfaces_of(&room, &mesh);
     let horizontal: Vec<_> = found
         .surfaces
@@ -819,10 +823,7 @@ fn no_surfaces_without_geometry_and_camera_up_as_fallback() {
 
 #[test]
 fn mesh_normals_on_detected_surfaces_take_the_planes_and_object_sides_keep_theirs() {
-    // The noisy room of `planes_normals_and_gravity_survive_stereo_depth_noise`.
-    let room = room(320, 240, 280.0);
-    let noisy = with_disparity_noise(&room.depth, 280.0 * 0.12, 0.5, 0x5eed);
-    let mesh = SceneMesh::from_depth(&noisy, &room.camera, &MeshOptions::default()).unwrap();
+    let (room, mesh) = noisy_room();
     let found = surfaces_of(&room, &mesh);
     let options = SurfaceOptions::default();
     let mut snapped = mesh.clone();
