@@ -6,9 +6,9 @@ use glam::{Mat3, Vec2, Vec3};
 use parallax::camera::Camera;
 use parallax::image::Raster;
 use parallax::mesh::{
-    detect_surfaces, detect_surfaces_with_confidence, pick, place, place_on_ray, Bvh, MeshOptions,
-    PlaceOptions, Ray, SceneMesh, SurfaceKind, SurfaceOptions, Surfaces, UpSource,
-    PLACE_SEARCH_RADIUS_PX,
+    detect_surfaces, detect_surfaces_with_confidence, detect_surfaces_with_host_up, pick, place,
+    place_on_ray, Bvh, MeshOptions, PlaceOptions, Ray, SceneMesh, SurfaceKind, SurfaceOptions,
+    Surfaces, UpSource, PLACE_SEARCH_RADIUS_PX,
 };
 
 const FLOOR_Y: f32 = -1.4;
@@ -314,6 +314,20 @@ fn a_near_horizontal_plane_is_levelled_only_when_its_tilt_is_noise() {
     for s in horizontal {
         assert!(s.normal.angle_between(found.up) < 1e-4, "{s:#?}");
     }
+
+    // Under the host's gravity (here 2° off the planes' own), they are levelled to the host's.
+    let host = Mat3::from_rotation_z(2f32.to_radians()) * room.up();
+    let options = SurfaceOptions::default();
+    let hosted = detect_surfaces_with_host_up(&mesh, &room.camera, None, &options, host).unwrap();
+    assert_eq!(hosted.up_source, UpSource::Host);
+    let levelled_to_host = hosted
+        .surfaces
+        .iter()
+        .filter(|s| s.kind == SurfaceKind::Horizontal)
+        .inspect(|s| assert!(s.normal.angle_between(host) < 1e-4, "{s:#?}"))
+        .count();
+    assert!(levelled_to_host >= 2);
+    assert!(detect_surfaces_with_host_up(&mesh, &room.camera, None, &options, Vec3::ZERO).is_err());
 
     // A drawing board 7° off level above a floor, under the same noise: kept as tilted.
     let camera = Camera::from_focal(280.0, 320, 240).unwrap();

@@ -25,8 +25,8 @@ pub use place::{
     place, place_on_ray, Orientation, PlaceOptions, Placement, PLACE_SEARCH_RADIUS_PX,
 };
 pub use surfaces::{
-    detect_surfaces, detect_surfaces_with_confidence, SupportSurface, SurfaceKind, SurfaceOptions,
-    Surfaces, UpSource,
+    detect_surfaces, detect_surfaces_with_confidence, detect_surfaces_with_host_up, SupportSurface,
+    SurfaceKind, SurfaceOptions, Surfaces, UpSource,
 };
 
 use glam::{DVec3, Vec3};

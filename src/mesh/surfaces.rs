@@ -30,8 +30,9 @@
 //! reweighted (Tukey's biweight on its inverse-depth residuals, with their own robust scale) so
 //! that runs of gross stereo errors inside the wide inlier band do not tilt it.
 //!
-//! A plane within 10° of the estimated up whose points the levelled plane (normal = up) explains
-//! about as well as its own fit is levelled: indoors, support surfaces are level, and a small
+//! A plane within 10° of up (the estimated one, or the host's given to
+//! [`detect_surfaces_with_host_up`]) whose points the levelled plane (normal = up) explains about
+//! as well as its own fit is levelled: indoors, support surfaces are level, and a small
 //! plane's fitted tilt is mostly stereo error (see `levelled` in the source).
 //!
 //! "Up" is the inlier-weighted mean normal of the near-horizontal planes (normals within 35° of the
@@ -246,7 +247,8 @@ pub(crate) fn validated_up(up: Vec3) -> Result<Vec3> {
 impl Surfaces {
     /// The same planes under the host's gravity `up` (camera frame; normalised here): an IMU or an
     /// AR runtime knows it far better than the planes of a noisy depth map do. Each surface's kind
-    /// is re-derived from it; `up_source` becomes [`UpSource::Host`].
+    /// is re-derived from it; `up_source` becomes [`UpSource::Host`]. The planes keep their
+    /// normals: [`detect_surfaces_with_host_up`] also levels them to the host's up.
     ///
     /// # Errors
     /// `InvalidArgument` when `up` is not finite or has zero length.
@@ -389,6 +391,34 @@ pub fn detect_surfaces_with_confidence(
     confidence: Option<&Raster<f32>>,
     options: &SurfaceOptions,
 ) -> Result<Surfaces> {
+    detect(mesh, camera, confidence, options, None)
+}
+
+/// [`detect_surfaces_with_confidence`] under the host's gravity `up` (camera frame; normalised
+/// here): near-horizontal planes are levelled to it (where they fit as well levelled: module
+/// docs) instead of to the up of the planes, and the result is [`Surfaces::with_host_up`]'s.
+///
+/// # Errors
+/// As [`detect_surfaces_with_confidence`] and [`Surfaces::with_host_up`].
+pub fn detect_surfaces_with_host_up(
+    mesh: &SceneMesh,
+    camera: &Camera,
+    confidence: Option<&Raster<f32>>,
+    options: &SurfaceOptions,
+    up: Vec3,
+) -> Result<Surfaces> {
+    let up = validated_up(up)?;
+    detect(mesh, camera, confidence, options, Some(up))?.with_host_up(up)
+}
+
+/// The detection itself; `host_up` (unit) replaces the planes' up as the level.
+fn detect(
+    mesh: &SceneMesh,
+    camera: &Camera,
+    confidence: Option<&Raster<f32>>,
+    options: &SurfaceOptions,
+    host_up: Option<Vec3>,
+) -> Result<Surfaces> {
     options.validate()?;
     camera.validate()?;
     if let Some(c) = confidence {
@@ -490,18 +520,23 @@ pub fn detect_surfaces_with_confidence(
     }
 
     let (mut up, up_source) = estimate_up(&found, &points);
-    // With the up of the planes themselves; a host's up (`Surfaces::with_host_up`) reclassifies
-    // the planes but does not refit them.
-    if up_source == UpSource::Planes {
-        // A plane that does not level is sloped: its normal says nothing about gravity.
-        let level: Vec<(Plane, Vec<usize>)> = found
-            .iter()
-            .filter(|(plane, piece)| levelled(plane, piece, &points, up).is_some())
-            .cloned()
-            .collect();
-        if let (refined, UpSource::Planes) = estimate_up(&level, &points) {
-            up = refined;
+    let level_to = match host_up {
+        Some(host) => Some(host),
+        None if up_source == UpSource::Planes => {
+            // A plane that does not level is sloped: its normal says nothing about gravity.
+            let level: Vec<(Plane, Vec<usize>)> = found
+                .iter()
+                .filter(|(plane, piece)| levelled(plane, piece, &points, up).is_some())
+                .cloned()
+                .collect();
+            if let (refined, UpSource::Planes) = estimate_up(&level, &points) {
+                up = refined;
+            }
+            Some(up)
         }
+        None => None,
+    };
+    if let Some(up) = level_to {
         for (plane, piece) in found.iter_mut() {
             if let Some(level) = levelled(plane, piece, &points, up) {
                 *plane = level;

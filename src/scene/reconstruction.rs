@@ -16,8 +16,8 @@ use crate::error::{Error, Result};
 use crate::image::Raster;
 use crate::mesh::simplify::simplify;
 use crate::mesh::{
-    self, detect_surfaces_with_confidence, Bvh, Hit, MeshOptions, PlaceOptions, Placement, Ray,
-    SceneMesh, SurfaceOptions, Surfaces,
+    self, detect_surfaces_with_confidence, detect_surfaces_with_host_up, Bvh, Hit, MeshOptions,
+    PlaceOptions, Placement, Ray, SceneMesh, SurfaceOptions, Surfaces,
 };
 use crate::trace::{StageStatus, Trace};
 
@@ -467,12 +467,9 @@ impl Scene {
             .as_deref()
             .or(stereo.as_deref().map(|d| &d.confidence));
         self.surfaces
-            .get_or_compute("surfaces", &versions, trace, |_| {
-                let found = detect_surfaces_with_confidence(mesh, &camera, confidence, &options)?;
-                match host_up {
-                    Some(up) => found.with_host_up(up),
-                    None => Ok(found),
-                }
+            .get_or_compute("surfaces", &versions, trace, |_| match host_up {
+                Some(up) => detect_surfaces_with_host_up(mesh, &camera, confidence, &options, up),
+                None => detect_surfaces_with_confidence(mesh, &camera, confidence, &options),
             })
     }
 
