@@ -8,6 +8,9 @@
  * outputs only on success; the message of a failure is read with plx_last_error_message on the
  * handle. Handles are created by plx_X_new and freed by plx_X_free (NULL allowed).
  * Option structs start with a size field: initialise them with their plx_X_options_init.
+ * The setters read only the `size` bytes the caller declares, so a struct filled by hand from an
+ * older header still works; plx_X_options_init, however, writes the whole struct as this header
+ * declares it, so code that calls it must be compiled against this header.
  * Thread safety is stated per type.
  */
 
