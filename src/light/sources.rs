@@ -117,8 +117,9 @@ const PANEL_COHERENCE: f32 = 0.9;
 /// and whose normals agree (a ceiling panel, a screen) becomes an [`LightKind::Area`] disc facing
 /// away from that surface; any other blob (a bulb, whose normals spread over a sphere, or a blob
 /// without its own depth) becomes a [`LightKind::Point`] sphere that emits every way: with its
-/// own depth, centred a radius behind its median depth, else where a disc would be. Either way the diameter matches the blob's area at
-/// that depth and the radiant intensity is `mean radiance × that area`. A saturated LDR blob only
+/// own depth, centred a radius behind its median depth, else where a disc would be. Either way
+/// the diameter matches the blob's area at that depth and the radiant intensity is
+/// `mean radiance × that area`. A saturated LDR blob only
 /// gives a lower bound of its radiance; [`crate::light::fit_lights`] rescales in-view lights from
 /// the shading they cause.
 ///

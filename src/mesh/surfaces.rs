@@ -195,6 +195,12 @@ impl SupportSurface {
         point_in_polygon(pixel, &self.polygon_image)
     }
 
+    /// Whether the point seen at `pixel` lies on the surface: within `tolerance` × its depth of
+    /// the plane, the pixel inside the image polygon.
+    fn holds(&self, pixel: Vec2, point: Vec3, tolerance: f32) -> bool {
+        self.distance(point).abs() <= tolerance * -point.z && self.contains_pixel(pixel)
+    }
+
     /// Whether the foot of `p` on the plane lies inside the extent polygon.
     pub fn contains_point(&self, p: Vec3) -> bool {
         let u = self.normal.any_orthonormal_vector();
@@ -266,9 +272,9 @@ impl Surfaces {
     /// point lies within `tolerance` × its depth of the plane and the pixel inside the surface's
     /// image polygon.
     pub fn surface_at(&self, pixel: Vec2, point: Vec3, tolerance: f32) -> Option<usize> {
-        self.surfaces.iter().position(|s| {
-            s.distance(point).abs() <= tolerance * -point.z && s.contains_pixel(pixel)
-        })
+        self.surfaces
+            .iter()
+            .position(|s| s.holds(pixel, point, tolerance))
     }
 
     /// Replaces the normal of every pixel whose point lies on a detected surface
@@ -342,9 +348,7 @@ impl Surfaces {
             let pixel = Vec2::from(*uv) * size;
             let own = Vec3::from(*normal);
             let on = self.surfaces.iter().find(|s| {
-                own.dot(s.normal) >= min_cos
-                    && s.distance(point).abs() <= distance_tolerance * -point.z
-                    && s.contains_pixel(pixel)
+                own.dot(s.normal) >= min_cos && s.holds(pixel, point, distance_tolerance)
             });
             if let Some(s) = on {
                 *normal = s.normal.to_array();
@@ -524,12 +528,10 @@ fn detect(
         Some(host) => Some(host),
         None if up_source == UpSource::Planes => {
             // A plane that does not level is sloped: its normal says nothing about gravity.
-            let level: Vec<(Plane, Vec<usize>)> = found
+            let level = found
                 .iter()
-                .filter(|(plane, piece)| levelled(plane, piece, &points, up).is_some())
-                .cloned()
-                .collect();
-            if let (refined, UpSource::Planes) = estimate_up(&level, &points) {
+                .filter(|(plane, piece)| levelled(plane, piece, &points, up).is_some());
+            if let (refined, UpSource::Planes) = estimate_up(level, &points) {
                 up = refined;
             }
             Some(up)
@@ -901,11 +903,14 @@ impl ImageGrid {
 /// count towards "up": the gravity prior, i.e. the camera pitched or rolled by at most this much.
 const MAX_UP_TILT_DEG: f32 = 35.0;
 
-fn estimate_up(found: &[(Plane, Vec<usize>)], points: &[Point]) -> (Vec3, UpSource) {
+fn estimate_up<'a>(
+    found: impl IntoIterator<Item = &'a (Plane, Vec<usize>)>,
+    points: &[Point],
+) -> (Vec3, UpSource) {
     let cos_gate = MAX_UP_TILT_DEG.to_radians().cos();
     // Candidate up directions: normals of near-horizontal planes, ceilings flipped.
     let candidates: Vec<(Vec3, usize)> = found
-        .iter()
+        .into_iter()
         .filter_map(|(plane, piece)| {
             let n = plane.normal;
             // Weighed by measured points: filled depth says nothing about a plane's tilt.
