@@ -28,7 +28,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::image::Raster;
-use crate::robust::{tukey, MAD_TO_SIGMA, TUKEY_C};
+use crate::robust::{MAD_TO_SIGMA, TUKEY_C};
 
 /// Radii of the growing neighbourhood, pixels.
 const RADII: [i64; 5] = [2, 4, 8, 16, 32];
@@ -39,6 +39,8 @@ const SUBSAMPLE_DIVISOR: i64 = 8;
 const FIRST_RADIUS_ROUNDS: usize = 2;
 /// Growth stops once the normal's standard error is below this, degrees.
 pub(crate) const TARGET_NORMAL_ERROR_DEG: f64 = 1.0;
+/// Samples summed side by side in [`LocalFitter::window_sums`] (four f64 = one AVX2 register).
+const LANES: usize = 4;
 /// Sum of weights below which a fit is not trusted (the previous radius' fit stands).
 const MIN_WEIGHT: f64 = 8.0;
 /// Smallest noise assumed, relative to the median inverse depth: exact (rendered or synthetic)
@@ -102,17 +104,11 @@ pub(crate) fn inverse_depth_noise(w: &Raster<f64>, spacing: usize) -> Option<f64
 }
 
 /// `w ≈ a·(u − u₀) + b·(v − v₀) + g` around a centre pixel `(u₀, v₀)`.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 struct LocalPlane {
     a: f64,
     b: f64,
     g: f64,
-}
-
-impl LocalPlane {
-    fn residual(&self, du: f64, dv: f64, w: f64) -> f64 {
-        w - (self.a * du + self.b * dv + self.g)
-    }
 }
 
 /// Normal of the local plane at pixel centre `(u0, v0)`, unit and facing the camera.
@@ -199,9 +195,126 @@ pub(crate) fn correlated_noise(w: &Raster<f64>) -> Option<NoiseScale> {
     })
 }
 
+/// Weighted sums over a window's samples `(du, dv, w)`: the normal equations of the plane fit
+/// `w ≈ a·du + b·dv + g`.
+#[derive(Clone, Copy, Debug, Default)]
+struct WindowSums {
+    weight: f64,
+    du: f64,
+    dv: f64,
+    du_du: f64,
+    du_dv: f64,
+    dv_dv: f64,
+    w: f64,
+    du_w: f64,
+    dv_w: f64,
+}
+
+crate::avx2_variant!(fn weight_sums<'a, 'b>(fitter: &'b LocalFitter<'a>, x0: usize, y0: usize, r: i64, plane: Option<&'b LocalPlane>) -> WindowSums => LocalFitter::window_sums::<false>);
+crate::avx2_variant!(fn moment_sums<'a, 'b>(fitter: &'b LocalFitter<'a>, x0: usize, y0: usize, r: i64, plane: Option<&'b LocalPlane>) -> WindowSums => LocalFitter::window_sums::<true>);
+
+/// A window's samples: `count` columns from `start` in the padded row of its step's thinned
+/// copy (at `du = du0 + i·step` from the centre), and rows `y_start + j·step`, `j < rows`, at
+/// `dv = dv0 + j·step`.
+struct Window<'t> {
+    thinned: &'t Thinned,
+    phase: usize,
+    start: usize,
+    count: usize,
+    du0: f64,
+    y_start: usize,
+    dv0: f64,
+    rows: usize,
+}
+
+impl Window<'_> {
+    /// `(y, dv)` of each row.
+    #[inline(always)]
+    fn rows(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
+        (0..self.rows).map(|j| {
+            let offset = j * self.thinned.step;
+            (self.y_start + offset, self.dv0 + offset as f64)
+        })
+    }
+
+    /// Row `y`'s samples in whole lanes, the window's `count` and then as many past it as fill
+    /// the last lane (the caller masks them): inverse depths (0 where missing) and whether each
+    /// is valid (1 or 0; 0 outside the image).
+    #[inline(always)]
+    fn row(&self, y: usize) -> (&[f64], &[f64]) {
+        let lanes = self.count.div_ceil(LANES) * LANES;
+        let (w, valid) = self.thinned.row(self.phase, y);
+        let range = self.start..self.start + lanes;
+        (&w[range.clone()], &valid[range])
+    }
+}
+
+/// Every `step`-th column of the inverse-depth map, one copy per phase (`x ≡ phase mod step`),
+/// each row padded with [`THINNED_PAD`] missing samples on both sides: a thinned window then
+/// reads one contiguous slice per row, with no bounds test per sample. Missing depth is stored
+/// as 0 with a validity of 0, so the fit can weigh it with arithmetic instead of branches.
+struct Thinned {
+    step: usize,
+    /// Per phase: the padded row length, the inverse depths and their validity (1 or 0).
+    phases: Vec<(usize, Vec<f64>, Vec<f64>)>,
+}
+
+/// Padding of a [`Thinned`] row: a window reaches [`SUBSAMPLE_DIVISOR`] samples past an edge,
+/// plus up to `LANES − 1` masked ones.
+const THINNED_PAD: usize = SUBSAMPLE_DIVISOR as usize + LANES;
+
+impl Thinned {
+    fn new(w: &Raster<f64>, step: usize) -> Thinned {
+        let (width, height) = (w.width(), w.height());
+        let phases = (0..step)
+            .map(|phase| {
+                let cols = width.saturating_sub(phase).div_ceil(step);
+                let stride = cols + 2 * THINNED_PAD;
+                let mut values = vec![0.0; stride * height];
+                let mut valid = vec![0.0; stride * height];
+                for (y, (values, valid)) in values
+                    .chunks_exact_mut(stride)
+                    .zip(valid.chunks_exact_mut(stride))
+                    .enumerate()
+                {
+                    let inside = THINNED_PAD..THINNED_PAD + cols;
+                    for ((value, ok), &v) in values[inside.clone()]
+                        .iter_mut()
+                        .zip(&mut valid[inside])
+                        .zip(w.row(y).iter().skip(phase).step_by(step))
+                    {
+                        if v.is_finite() {
+                            (*value, *ok) = (v, 1.0);
+                        }
+                    }
+                }
+                (stride, values, valid)
+            })
+            .collect();
+        Thinned { step, phases }
+    }
+
+    #[inline(always)]
+    fn row(&self, phase: usize, y: usize) -> (&[f64], &[f64]) {
+        let (stride, values, valid) = &self.phases[phase];
+        let range = y * stride..(y + 1) * stride;
+        (&values[range.clone()], &valid[range])
+    }
+}
+
+/// The sampling step of a window of radius `r`, pixels.
+fn step_of(r: i64) -> usize {
+    (r / SUBSAMPLE_DIVISOR).max(1) as usize
+}
+
+/// Lanes a window's row takes at most: `2·SUBSAMPLE_DIVISOR + 1` samples, rounded up.
+const MAX_ROW_LANES: usize = (2 * SUBSAMPLE_DIVISOR as usize + 1).div_ceil(LANES) * LANES;
+
 /// The robust local fitter over one inverse-depth map.
 pub(crate) struct LocalFitter<'a> {
     w: &'a Raster<f64>,
+    /// `w` thinned at every step a window uses (1, 2, 4).
+    thinned: Vec<Thinned>,
     camera: &'a Camera,
     /// Tukey cut-off, 1/m.
     c: f64,
@@ -210,47 +323,125 @@ pub(crate) struct LocalFitter<'a> {
 
 impl<'a> LocalFitter<'a> {
     pub(crate) fn new(w: &'a Raster<f64>, camera: &'a Camera, noise: NoiseScale) -> Self {
+        let mut steps: Vec<usize> = RADII.iter().map(|&r| step_of(r)).collect();
+        steps.dedup();
         LocalFitter {
             w,
+            thinned: steps
+                .into_iter()
+                .map(|step| Thinned::new(w, step))
+                .collect(),
             camera,
             c: TUKEY_C * noise.sigma,
             noise,
         }
     }
 
-    /// Visits the valid samples of the window of radius `r` (thinned) around `(x0, y0)`.
-    fn for_window(&self, x0: usize, y0: usize, r: i64, mut f: impl FnMut(f64, f64, f64)) {
-        let step = (r / SUBSAMPLE_DIVISOR).max(1);
-        let (width, height) = (self.w.width() as i64, self.w.height() as i64);
+    /// The window of radius `r` (thinned) around `(x0, y0)`, its rows clipped to the image;
+    /// `None` when no row is inside.
+    #[inline(always)]
+    fn window(&self, x0: usize, y0: usize, r: i64) -> Option<Window<'_>> {
+        let step = step_of(r);
+        let thinned = self.thinned.iter().find(|t| t.step == step)?;
+        let (step, height) = (step as i64, self.w.height() as i64);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let mut dy = -r;
-        while dy <= r {
-            let y = y0 + dy;
-            if (0..height).contains(&y) {
-                let row = self.w.row(y as usize);
-                let mut dx = -r;
-                while dx <= r {
-                    let x = x0 + dx;
-                    if (0..width).contains(&x) {
-                        let w = row[x as usize];
-                        if w.is_finite() {
-                            f(dx as f64, dy as f64, w);
-                        }
+        let top = ((r - y0).max(0) + step - 1) / step;
+        let bottom = ((height - 1).min(y0 + r) - (y0 - r)).div_euclid(step);
+        if bottom < top {
+            return None;
+        }
+        // Column x0 − r is sample (x0 − r − phase) / step of its phase's copy (negative ones
+        // are in the padding).
+        let left = x0 - r;
+        let phase = left.rem_euclid(step);
+        let start = THINNED_PAD as i64 + (left - phase) / step;
+        Some(Window {
+            thinned,
+            phase: phase as usize,
+            start: usize::try_from(start).ok()?,
+            count: (2 * r / step + 1) as usize,
+            du0: -r as f64,
+            y_start: (y0 - r + top * step) as usize,
+            dv0: (top * step - r) as f64,
+            rows: (bottom - top + 1) as usize,
+        })
+    }
+
+    /// Tukey-weighted sums of the radius-`r` window's samples against `plane` (every valid
+    /// sample weighted 1 without one); with `MOMENTS` false only the total weight is summed.
+    /// Branch-free over [`LANES`] samples at a time so that the compiler vectorises it: this is
+    /// where the scene mesh spends most of its time.
+    #[inline(always)]
+    fn window_sums<const MOMENTS: bool>(
+        &self,
+        x0: usize,
+        y0: usize,
+        r: i64,
+        plane: Option<&LocalPlane>,
+    ) -> WindowSums {
+        // Without a plane, a zero plane and a zero scale give every residual the weight 1.
+        let (plane, inv_c) = match plane {
+            Some(p) => (*p, 1.0 / self.c),
+            None => (LocalPlane::default(), 0.0),
+        };
+        let Some(window) = self.window(x0, y0, r) else {
+            return WindowSums::default();
+        };
+        let step = window.thinned.step as f64;
+        // 1 for the window's own columns, 0 for those that only fill the last lane.
+        let mut in_window = [0.0; MAX_ROW_LANES];
+        in_window[..window.count].fill(1.0);
+        // One accumulator per sum and lane; the loop is branch-free arithmetic lane by lane,
+        // which LLVM turns into vector instructions.
+        let mut acc = [[0.0f64; LANES]; 9];
+        for (y, dv) in window.rows() {
+            let row_offset = plane.b * dv + plane.g;
+            let (values, valid) = window.row(y);
+            for (c, (values, valid)) in values
+                .chunks_exact(LANES)
+                .zip(valid.chunks_exact(LANES))
+                .enumerate()
+            {
+                for l in 0..LANES {
+                    let i = c * LANES + l;
+                    let du = window.du0 + i as f64 * step;
+                    let w = values[l];
+                    let t = (w - (plane.a * du + row_offset)) * inv_c;
+                    let s = (1.0 - t * t).max(0.0);
+                    let k = s * s * valid[l] * in_window[i];
+                    acc[0][l] += k;
+                    if MOMENTS {
+                        let (ku, kv) = (k * du, k * dv);
+                        acc[1][l] += ku;
+                        acc[2][l] += kv;
+                        acc[3][l] += ku * du;
+                        acc[4][l] += ku * dv;
+                        acc[5][l] += kv * dv;
+                        acc[6][l] += k * w;
+                        acc[7][l] += ku * w;
+                        acc[8][l] += kv * w;
                     }
-                    dx += step;
                 }
             }
-            dy += step;
+        }
+        let [weight, du, dv, du_du, du_dv, dv_dv, w, du_w, dv_w] =
+            acc.map(|l| l.iter().sum::<f64>());
+        WindowSums {
+            weight,
+            du,
+            dv,
+            du_du,
+            du_dv,
+            dv_dv,
+            w,
+            du_w,
+            dv_w,
         }
     }
 
     /// Total Tukey weight of a plane's residuals in the radius-`r` window.
     fn support(&self, x0: usize, y0: usize, r: i64, plane: &LocalPlane) -> f64 {
-        let mut total = 0.0;
-        self.for_window(x0, y0, r, |du, dv, w| {
-            total += tukey(plane.residual(du, dv, w), self.c)
-        });
-        total
+        weight_sums(self, x0, y0, r, Some(plane)).weight
     }
 
     /// One reweighted least-squares step (every sample weighted 1 without a `plane`); `None` when
@@ -264,26 +455,15 @@ impl<'a> LocalFitter<'a> {
         plane: Option<&LocalPlane>,
         min_weight: f64,
     ) -> Option<(LocalPlane, DMat3)> {
-        let mut m = [[0.0f64; 3]; 3];
-        let mut rhs = [0.0f64; 3];
-        let mut total = 0.0;
-        self.for_window(x0, y0, r, |du, dv, w| {
-            let k = plane.map_or(1.0, |p| tukey(p.residual(du, dv, w), self.c));
-            if k > 0.0 {
-                let x = [du, dv, 1.0];
-                for i in 0..3 {
-                    for j in 0..3 {
-                        m[i][j] += k * x[i] * x[j];
-                    }
-                    rhs[i] += k * x[i] * w;
-                }
-                total += k;
-            }
-        });
-        if total < min_weight {
+        let s = moment_sums(self, x0, y0, r, plane);
+        if s.weight < min_weight {
             return None;
         }
-        let m = DMat3::from_cols_array_2d(&m);
+        let m = DMat3::from_cols(
+            DVec3::new(s.du_du, s.du_dv, s.du),
+            DVec3::new(s.du_dv, s.dv_dv, s.dv),
+            DVec3::new(s.du, s.dv, s.weight),
+        );
         // Relative conditioning check: a window whose inliers lie on a line cannot fix a plane.
         let det = m.determinant();
         let scale = m.x_axis.x * m.y_axis.y * m.z_axis.z;
@@ -291,7 +471,7 @@ impl<'a> LocalFitter<'a> {
             return None;
         }
         let inv = m.inverse();
-        let theta = inv * DVec3::from(rhs);
+        let theta = inv * DVec3::new(s.du_w, s.dv_w, s.w);
         let plane = LocalPlane {
             a: theta.x,
             b: theta.y,
@@ -305,7 +485,7 @@ impl<'a> LocalFitter<'a> {
     /// than the noise's correlation length share their error, so a window holds only about
     /// `(step / correlation)²` as many independent ones.
     fn normal_error(&self, plane: &LocalPlane, inv: &DMat3, r: i64, u0: f64, v0: f64) -> f64 {
-        let step = (r / SUBSAMPLE_DIVISOR).max(1) as f64;
+        let step = step_of(r) as f64;
         let sigma = self.noise.sigma * (self.noise.correlation_px / step).max(1.0);
         let camera = self.camera;
         let (fx, fy) = (camera.fx as f64, camera.fy as f64);
@@ -342,7 +522,19 @@ impl<'a> LocalFitter<'a> {
         // (right on clean depth at an edge, where the triangles are cut). The one with the most
         // support in the first window wins.
         let mut near = Vec::with_capacity(9);
-        self.for_window(x0, y0, 1, |_, _, w| near.push(w));
+        if let Some(window) = self.window(x0, y0, 1) {
+            for (y, _) in window.rows() {
+                let (values, valid) = window.row(y);
+                near.extend(
+                    values
+                        .iter()
+                        .zip(valid)
+                        .take(window.count)
+                        .filter(|&(_, &ok)| ok > 0.0)
+                        .map(|(&w, _)| w),
+                );
+            }
+        }
         near.sort_by(f64::total_cmp);
         let flat = LocalPlane {
             a: 0.0,
