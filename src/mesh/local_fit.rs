@@ -314,6 +314,24 @@ fn step_of(r: i64) -> usize {
 /// Lanes a window's row takes at most: `2·SUBSAMPLE_DIVISOR + 1` samples, rounded up.
 const MAX_ROW_LANES: usize = (2 * SUBSAMPLE_DIVISOR as usize + 1).div_ceil(LANES) * LANES;
 
+// Every radius' window row reaches at most SUBSAMPLE_DIVISOR samples from its centre (so it fits
+// MAX_ROW_LANES and the padding), and its step divides the radius (so `count` covers it exactly);
+// the first radius has step 1, whose copy the 3×3 start of `normal_at` reads.
+const _: () = {
+    assert!(RADII[0] < 2 * SUBSAMPLE_DIVISOR);
+    let mut i = 0;
+    while i < RADII.len() {
+        let r = RADII[i];
+        let step = if r / SUBSAMPLE_DIVISOR > 1 {
+            r / SUBSAMPLE_DIVISOR
+        } else {
+            1
+        };
+        assert!(r % step == 0 && r / step <= SUBSAMPLE_DIVISOR);
+        i += 1;
+    }
+};
+
 /// The robust local fitter over one inverse-depth map.
 pub(crate) struct LocalFitter<'a> {
     w: &'a Raster<f64>,
