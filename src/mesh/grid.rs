@@ -614,7 +614,8 @@ mod tests {
     fn extreme_depths_and_fields_of_view_stay_finite() {
         for fov in [1.0, 170.0] {
             let c = Camera::from_fov(fov, 16, 16).unwrap();
-            for z in [1e-30f32, 1e-6, 1e30, 3e38] {
+            // 1e-40 is subnormal in f32; its inverse is beyond f32.
+            for z in [1e-40f32, 1e-30, 1e-6, 1e30, 3e38] {
                 let depth = Raster::filled(16, 16, z);
                 match SceneMesh::from_depth(&depth, &c, &MeshOptions::default()) {
                     Ok(m) => check_invariants(&m),

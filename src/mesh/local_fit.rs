@@ -274,24 +274,24 @@ impl Thinned {
                 let stride = cols + 2 * THINNED_PAD;
                 let mut values = vec![0.0; stride * height];
                 let mut valid = vec![0.0; stride * height];
-                for (y, (values, valid)) in values
-                    .chunks_exact_mut(stride)
-                    .zip(valid.chunks_exact_mut(stride))
+                values
+                    .par_chunks_exact_mut(stride)
+                    .zip(valid.par_chunks_exact_mut(stride))
                     .enumerate()
-                {
-                    let inside = THINNED_PAD..THINNED_PAD + cols;
-                    for ((value, ok), &v) in values[inside.clone()]
-                        .iter_mut()
-                        .zip(&mut valid[inside])
-                        .zip(w.row(y).iter().skip(phase).step_by(step))
-                    {
-                        // An inverse depth beyond f32 (a depth under 10⁻³⁸ m) counts as missing.
-                        let v = v as f32;
-                        if v.is_finite() {
-                            (*value, *ok) = (v, 1.0);
+                    .for_each(|(y, (values, valid))| {
+                        let inside = THINNED_PAD..THINNED_PAD + cols;
+                        for ((value, ok), &v) in values[inside.clone()]
+                            .iter_mut()
+                            .zip(&mut valid[inside])
+                            .zip(w.row(y).iter().skip(phase).step_by(step))
+                        {
+                            // An inverse depth beyond f32 (a depth under 10⁻³⁸ m) counts as missing.
+                            let v = v as f32;
+                            if v.is_finite() {
+                                (*value, *ok) = (v, 1.0);
+                            }
                         }
-                    }
-                }
+                    });
                 (stride, values, valid)
             })
             .collect();
@@ -315,10 +315,8 @@ fn step_of(r: i64) -> usize {
 const MAX_ROW_LANES: usize = (2 * SUBSAMPLE_DIVISOR as usize + 1).div_ceil(LANES) * LANES;
 
 // Every radius' window row reaches at most SUBSAMPLE_DIVISOR samples from its centre (so it fits
-// MAX_ROW_LANES and the padding), and its step divides the radius (so `count` covers it exactly);
-// the first radius has step 1, whose copy the 3×3 start of `normal_at` reads.
+// MAX_ROW_LANES and the padding), and its step divides the radius (so `count` covers it exactly).
 const _: () = {
-    assert!(RADII[0] < 2 * SUBSAMPLE_DIVISOR);
     let mut i = 0;
     while i < RADII.len() {
         let r = RADII[i];
@@ -543,25 +541,24 @@ impl<'a> LocalFitter<'a> {
         // 3×3 (right on clean depth away from edges), and the plane of the mesh's triangles
         // (right on clean depth at an edge, where the triangles are cut). The one with the most
         // support in the first window wins.
-        let mut near = Vec::with_capacity(9);
-        if let Some(window) = self.window(x0, y0, 1) {
-            for (y, _) in window.rows() {
-                let (values, valid) = window.row(y);
-                near.extend(
-                    values
-                        .iter()
-                        .zip(valid)
-                        .take(window.count)
-                        .filter(|&(_, &ok)| ok > 0.0)
-                        .map(|(&w, _)| w as f64),
-                );
+        let (width, height) = (self.w.width(), self.w.height());
+        let mut near = [0.0f64; 9];
+        let mut count = 0;
+        for y in y0.saturating_sub(1)..=(y0 + 1).min(height - 1) {
+            for &w in &self.w.row(y)[x0.saturating_sub(1)..=(x0 + 1).min(width - 1)] {
+                if w.is_finite() {
+                    near[count] = w;
+                    count += 1;
+                }
             }
         }
+        // The centre is among them, so the 3×3 is never empty.
+        let near = &mut near[..count];
         near.sort_by(f64::total_cmp);
         let flat = LocalPlane {
             a: 0.0,
             b: 0.0,
-            g: near[near.len() / 2],
+            g: near[count / 2],
         };
         let candidates = [
             Some(flat),
