@@ -36,6 +36,7 @@ pub mod refine;
 pub mod sad;
 pub mod sgm;
 pub mod simd;
+pub mod speckle;
 
 use std::time::Instant;
 

@@ -228,64 +228,7 @@ fn first_min(s: &[u16]) -> (u16, usize) {
     ((packed >> 16) as u16, (packed & 0xFFFF) as usize)
 }
 
-/// Marks as [`PixelState::Mismatch`] every 4-connected region of valid pixels (neighbours differing
-/// by at most `range`) smaller than `max_size` pixels.
-pub fn remove_speckles(
-    disparity: &mut Raster<f32>,
-    state: &mut [PixelState],
-    max_size: usize,
-    range: f32,
-) {
-    if max_size == 0 {
-        return;
-    }
-    let (w, h) = (disparity.width(), disparity.height());
-    let mut label = vec![u32::MAX; w * h];
-    let mut stack = Vec::new();
-    let mut region = Vec::new();
-    let mut next = 0u32;
-    let d = disparity.pixels().to_vec();
-    for start in 0..w * h {
-        if label[start] != u32::MAX || state[start] != PixelState::Valid {
-            continue;
-        }
-        region.clear();
-        stack.push(start);
-        label[start] = next;
-        while let Some(p) = stack.pop() {
-            region.push(p);
-            let (x, y) = (p % w, p / w);
-            let mut visit = |q: usize| {
-                if label[q] == u32::MAX
-                    && state[q] == PixelState::Valid
-                    && (d[q] - d[p]).abs() <= range
-                {
-                    label[q] = next;
-                    stack.push(q);
-                }
-            };
-            if x > 0 {
-                visit(p - 1);
-            }
-            if x + 1 < w {
-                visit(p + 1);
-            }
-            if y > 0 {
-                visit(p - w);
-            }
-            if y + 1 < h {
-                visit(p + w);
-            }
-        }
-        if region.len() < max_size {
-            for &p in &region {
-                state[p] = PixelState::Mismatch;
-                disparity.pixels_mut()[p] = f32::NAN;
-            }
-        }
-        next = next.wrapping_add(1);
-    }
-}
+pub use super::speckle::remove_speckles;
 
 /// Local sub-pixel refinement: for every pixel with an estimate, a few Gauss–Newton steps
 /// (Lucas–Kanade in one dimension) on the grey levels of a `(2r+1)²` window move the disparity
@@ -528,22 +471,5 @@ mod tests {
             let o = subpixel_offset(m, 0.0, 0.0, 100.0);
             assert!((-0.5..=0.5).contains(&o));
         }
-    }
-
-    #[test]
-    fn small_regions_are_removed_and_large_ones_kept() {
-        let mut d = Raster::from_fn(20, 20, |x, y| {
-            if (8..10).contains(&x) && (8..10).contains(&y) {
-                30.0
-            } else {
-                5.0
-            }
-        });
-        let mut st = vec![PixelState::Valid; 400];
-        remove_speckles(&mut d, &mut st, 10, 1.0);
-        assert!(d.get(8, 8).is_nan());
-        assert_eq!(st[8 * 20 + 9], PixelState::Mismatch);
-        assert_eq!(*d.get(0, 0), 5.0);
-        assert_eq!(st.iter().filter(|s| **s == PixelState::Mismatch).count(), 4);
     }
 }

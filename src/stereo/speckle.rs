@@ -1,0 +1,218 @@
+//! Speckle removal: small connected regions of similar disparity are taken for mismatches.
+//!
+//! Regions are labelled with union–find, in horizontal strips on all threads and then joined
+//! across the strips' borders. Two neighbours belong together when both are valid and their
+//! disparities differ by at most the range; the relation is symmetric, so the regions are the
+//! connected components of one graph and come out the same as a flood fill's, whatever the order.
+
+use rayon::prelude::*;
+
+use super::refine::PixelState;
+use crate::image::Raster;
+
+/// Marks as [`PixelState::Mismatch`] (and its disparity NaN) every 4-connected region of valid
+/// pixels (neighbours differing by at most `range`) smaller than `max_size` pixels.
+pub fn remove_speckles(
+    disparity: &mut Raster<f32>,
+    state: &mut [PixelState],
+    max_size: usize,
+    range: f32,
+) {
+    let (w, h) = (disparity.width(), disparity.height());
+    let n = w * h;
+    if max_size == 0 || n == 0 || state.len() != n || n > u32::MAX as usize {
+        return;
+    }
+    let roots = {
+        let d = disparity.pixels();
+        let state = &*state;
+        let joined = |p: usize, q: usize| {
+            state[p] == PixelState::Valid
+                && state[q] == PixelState::Valid
+                && (d[q] - d[p]).abs() <= range
+        };
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        // Several strips a thread, so that uneven strips still share the work.
+        let strip_rows = h.div_ceil(4 * rayon::current_num_threads()).max(1);
+        parent
+            .par_chunks_mut(strip_rows * w)
+            .enumerate()
+            .for_each(|(s, strip)| {
+                let mut forest = Forest {
+                    parent: strip,
+                    offset: s * strip_rows * w,
+                };
+                let rows = forest.parent.len() / w;
+                for y in 0..rows {
+                    for x in 0..w {
+                        let i = y * w + x;
+                        let p = forest.offset + i;
+                        if x + 1 < w && joined(p, p + 1) {
+                            forest.union(i, i + 1);
+                        }
+                        if y + 1 < rows && joined(p, p + w) {
+                            forest.union(i, i + w);
+                        }
+                    }
+                }
+            });
+        let mut forest = Forest {
+            parent: &mut parent,
+            offset: 0,
+        };
+        for y in (strip_rows..h).step_by(strip_rows) {
+            for x in 0..w {
+                let q = y * w + x;
+                if joined(q - w, q) {
+                    forest.union(q - w, q);
+                }
+            }
+        }
+        for i in 0..n {
+            forest.find(i);
+        }
+        parent
+    };
+    // Every pixel now points at its root.
+    let mut size = vec![0u32; n];
+    for &r in &roots {
+        size[r as usize] += 1;
+    }
+    disparity
+        .pixels_mut()
+        .par_iter_mut()
+        .zip(state.par_iter_mut())
+        .zip(roots.par_iter())
+        .for_each(|((d, s), &r)| {
+            if *s == PixelState::Valid && (size[r as usize] as usize) < max_size {
+                *s = PixelState::Mismatch;
+                *d = f32::NAN;
+            }
+        });
+}
+
+/// Union–find over a run of pixels `offset..offset + parent.len()`; `parent` holds image-wide
+/// indices, and every index a method takes or returns is relative to `offset`.
+struct Forest<'a> {
+    parent: &'a mut [u32],
+    offset: usize,
+}
+
+impl Forest<'_> {
+    /// The root of `i`, halving the path on the way.
+    fn find(&mut self, mut i: usize) -> usize {
+        loop {
+            let p = self.parent[i] as usize - self.offset;
+            if p == i {
+                return i;
+            }
+            let grandparent = self.parent[p];
+            self.parent[i] = grandparent;
+            i = grandparent as usize - self.offset;
+        }
+    }
+
+    /// Joins the sets of `a` and `b` under the smaller root index.
+    fn union(&mut self, a: usize, b: usize) {
+        let (ra, rb) = (self.find(a), self.find(b));
+        if ra != rb {
+            let (low, high) = (ra.min(rb), ra.max(rb));
+            self.parent[high] = (low + self.offset) as u32;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The flood fill the union–find replaces, written plainly.
+    fn flood_fill_speckles(d: &mut Raster<f32>, state: &mut [PixelState], max: usize, range: f32) {
+        let (w, h) = (d.width(), d.height());
+        let v = d.pixels().to_vec();
+        let mut seen = vec![false; w * h];
+        for start in 0..w * h {
+            if seen[start] || state[start] != PixelState::Valid {
+                continue;
+            }
+            let (mut stack, mut region) = (vec![start], Vec::new());
+            seen[start] = true;
+            while let Some(p) = stack.pop() {
+                region.push(p);
+                let (x, y) = (p % w, p / w);
+                let neighbours = [
+                    (x > 0).then(|| p - 1),
+                    (x + 1 < w).then(|| p + 1),
+                    (y > 0).then(|| p - w),
+                    (y + 1 < h).then(|| p + w),
+                ];
+                for q in neighbours.into_iter().flatten() {
+                    if !seen[q] && state[q] == PixelState::Valid && (v[q] - v[p]).abs() <= range {
+                        seen[q] = true;
+                        stack.push(q);
+                    }
+                }
+            }
+            if region.len() < max {
+                for p in region {
+                    state[p] = PixelState::Mismatch;
+                    d.pixels_mut()[p] = f32::NAN;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn small_regions_are_removed_and_large_ones_kept() {
+        let mut d = Raster::from_fn(20, 20, |x, y| {
+            if (8..10).contains(&x) && (8..10).contains(&y) {
+                30.0
+            } else {
+                5.0
+            }
+        });
+        let mut st = vec![PixelState::Valid; 400];
+        remove_speckles(&mut d, &mut st, 10, 1.0);
+        assert!(d.get(8, 8).is_nan());
+        assert_eq!(st[8 * 20 + 9], PixelState::Mismatch);
+        assert_eq!(*d.get(0, 0), 5.0);
+        assert_eq!(st.iter().filter(|s| **s == PixelState::Mismatch).count(), 4);
+    }
+
+    #[test]
+    fn regions_match_a_flood_fill_across_strips() {
+        // Random blobs of a few disparity levels with holes, on sizes that split into uneven
+        // strips; a one-pixel-wide line through every strip included.
+        let mut rng = crate::mesh::surfaces::XorShift(11);
+        for (w, h) in [(1, 1), (1, 37), (37, 1), (64, 48), (97, 131)] {
+            for max in [1, 5, 40] {
+                let mut d = Raster::from_fn(w, h, |_, _| rng.below(4) as f32 * 0.7);
+                let mut st: Vec<PixelState> = (0..w * h)
+                    .map(|_| {
+                        if rng.below(7) == 0 {
+                            PixelState::Occluded
+                        } else {
+                            PixelState::Valid
+                        }
+                    })
+                    .collect();
+                if w > 8 && h > 8 {
+                    for y in 0..h {
+                        *d.get_mut(3, y) = 50.0;
+                        st[y * w + 3] = PixelState::Valid;
+                    }
+                }
+                let (mut d2, mut st2) = (d.clone(), st.clone());
+                remove_speckles(&mut d, &mut st, max, 1.0);
+                flood_fill_speckles(&mut d2, &mut st2, max, 1.0);
+                assert_eq!(st, st2, "{w}x{h}, max {max}");
+                let same = d
+                    .pixels()
+                    .iter()
+                    .zip(d2.pixels())
+                    .all(|(a, b)| a == b || (a.is_nan() && b.is_nan()));
+                assert!(same, "{w}x{h}, max {max}");
+            }
+        }
+    }
+}
