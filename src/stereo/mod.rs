@@ -10,8 +10,8 @@
 //! 3. matching costs, census ([`census`]) or SAD blocks ([`sad`]), computed row by row;
 //! 4. aggregation: semi-global matching on 8 or 4 paths ([`sgm`]) or the thesis' scanline
 //!    dynamic programming ([`dp`]);
-//! 5. winner-takes-all, `U_p` confidence (eq. 3.5), sub-pixel, uniqueness, L/R check, speckles
-//!    ([`refine`]);
+//! 5. winner-takes-all, `U_p` confidence (eq. 3.5), sub-pixel, uniqueness, L/R check
+//!    ([`refine`]), speckles ([`speckle`]);
 //! 6. hole filling and edge-aware smoothing ([`fill`]).
 //!
 //! Disparity follows DESIGN.md: `d = x_left − x_right ≥ 0` in pixels, NaN where there is no estimate

@@ -1,6 +1,6 @@
 //! From aggregated costs to a disparity map: winner-takes-all, the uncertainty term `U_p`
-//! (eq. 3.5) as a confidence, sub-pixel refinement, uniqueness, the left/right consistency check
-//! and speckle removal.
+//! (eq. 3.5) as a confidence, sub-pixel refinement, uniqueness and the left/right consistency
+//! check; speckle removal ([`remove_speckles`]) lives in [`super::speckle`].
 
 use rayon::prelude::*;
 
