@@ -15,7 +15,7 @@
 //! | [`mesh`] | scene mesh from depth, ray queries (BVH), support surfaces, placement, export |
 //! | [`light`] | illumination: shadow mask, light sources, environment, SH9, prefiltering |
 //! | [`context`] | what scenes share: size caps, the lazily opened GPU |
-//! | [`reference`] | CPU path tracer and synthetic stereo scenes with exact ground truth |
+//! | [`reference`](mod@reference) | CPU path tracer and synthetic stereo scenes with exact ground truth |
 //! | [`scene`] | the demand-driven pipeline with cached products and a [`trace::Trace`] |
 //! | [`ffi`] | the C ABI (`include/parallax.h`) |
 //! | `render` (feature `gpu`) | the headless wgpu context and renderer |

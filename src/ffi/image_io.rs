@@ -1,7 +1,7 @@
 //! Images leaving the library into host memory (`plx_image_out`, any `plx_pixel_format`, any
 //! stride), and images read from files for hosts without their own decoder.
 //!
-//! Every image product a function hands to the host goes through [`write_linear`], so each one
+//! Every image product a function hands to the host goes through `write_linear`, so each one
 //! offers every format and stride the same way: the renderer's composite follows this pattern.
 
 use std::ffi::{c_char, CStr};

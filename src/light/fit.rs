@@ -49,7 +49,7 @@ pub struct FitInputs<'a> {
     /// Continuous regions ([`crate::light::continuity_regions`]); [`NO_REGION`] pixels are not
     /// used.
     pub regions: &'a Raster<u32>,
-    /// Soft shadow mask in [0, 1] ([`crate::light::shadow_mask`]), if any.
+    /// Soft shadow mask in [0, 1] ([`crate::light::shadow_mask()`]), if any.
     pub shadow_mask: Option<&'a Raster<f32>>,
     /// The camera.
     pub camera: &'a Camera,

@@ -8,7 +8,7 @@
 //! | [`simplify`] | quadric edge collapse down to a triangle budget: flat regions coarse, edges fine |
 //! | [`bvh`] | [`Bvh`]: closest-hit (pick) and any-hit (occlusion) queries over obvhs' CWBVH |
 //! | [`surfaces`] | support planes (RANSAC + refinement) and the gravity "up" |
-//! | [`place`] | transforms that stand an object on the surface under a pixel or a ray |
+//! | [`place`](mod@place) | transforms that stand an object on the surface under a pixel or a ray |
 //! | [`export`] | depth (PFM, 16-bit PNG mm), PLY, OBJ, GLB with the photo as texture |
 
 pub mod bvh;

@@ -494,10 +494,10 @@ impl Scene {
     }
 
     /// Stands an object of largest side `size_m` metres, turned by `yaw_rad` about its up axis,
-    /// on the surface seen at `pixel` ([`mesh::place`]).
+    /// on the surface seen at `pixel` ([`mesh::place()`]).
     ///
     /// # Errors
-    /// As [`Scene::mesh`] and [`mesh::place`] (`InvalidArgument` for a bad size or yaw, or a
+    /// As [`Scene::mesh`] and [`mesh::place()`] (`InvalidArgument` for a bad size or yaw, or a
     /// pixel with no surface under it).
     pub fn place(
         &mut self,

@@ -1,6 +1,6 @@
 //! Hot loops compiled for AVX2 when the CPU has it (runtime detection), else for the baseline
 //! target. The loops are written so that LLVM vectorises them (u8/u16 lanes, saturating
-//! arithmetic, no branches inside); [`avx2_variant!`] compiles an `#[inline(always)]` body a
+//! arithmetic, no branches inside); [`avx2_variant!`](crate::avx2_variant) compiles an `#[inline(always)]` body a
 //! second time inside a `#[target_feature(enable = "avx2")]` function, which doubles the lane
 //! count and gives the unsigned 16-bit min instructions that baseline SSE2 lacks.
 
