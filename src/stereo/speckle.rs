@@ -11,7 +11,9 @@ use super::refine::PixelState;
 use crate::image::Raster;
 
 /// Marks as [`PixelState::Mismatch`] (and its disparity NaN) every 4-connected region of valid
-/// pixels (neighbours differing by at most `range`) smaller than `max_size` pixels.
+/// pixels (neighbours differing by at most `range`) smaller than `max_size` pixels. `state` holds
+/// one entry per pixel, row by row; nothing is removed when it does not, or for an image of more
+/// than 2³² pixels (whose labels would not fit `u32`).
 pub fn remove_speckles(
     disparity: &mut Raster<f32>,
     state: &mut [PixelState],
