@@ -119,9 +119,8 @@ const PANEL_COHERENCE: f32 = 0.9;
 /// without its own depth) becomes a [`LightKind::Point`] sphere that emits every way: with its
 /// own depth, centred a radius behind its median depth, else where a disc would be. Either way
 /// the diameter matches the blob's area at that depth and the radiant intensity is
-/// `mean radiance × that area`. A saturated LDR blob only
-/// gives a lower bound of its radiance; [`crate::light::fit_lights`] rescales in-view lights from
-/// the shading they cause.
+/// `mean radiance × that area`. A saturated LDR blob only gives a lower bound of its radiance;
+/// [`crate::light::fit_lights`] rescales in-view lights from the shading they cause.
 ///
 /// # Errors
 /// `InvalidArgument` for an empty photo, bad options or camera; `SizeMismatch` when the depth map

@@ -214,14 +214,13 @@ crate::avx2_variant!(fn weight_sums<'a, 'b>(fitter: &'b LocalFitter<'a>, x0: usi
 crate::avx2_variant!(fn moment_sums<'a, 'b>(fitter: &'b LocalFitter<'a>, x0: usize, y0: usize, r: i64, plane: Option<&'b LocalPlane>) -> WindowSums => LocalFitter::window_sums::<true>);
 
 /// A window's samples: `count` columns from `start` in the padded row of its step's thinned
-/// copy (at `du = du0 + i·step` from the centre), and rows `y_start + j·step`, `j < rows`, at
-/// `dv = dv0 + j·step`.
+/// copy (at `du = i·step − r` from the centre, `r` the window's radius), and rows
+/// `y_start + j·step`, `j < rows`, at `dv = dv0 + j·step`.
 struct Window<'t> {
     thinned: &'t Thinned,
     phase: usize,
     start: usize,
     count: usize,
-    du0: f64,
     y_start: usize,
     dv0: f64,
     rows: usize,
@@ -380,7 +379,6 @@ impl<'a> LocalFitter<'a> {
             phase: phase as usize,
             start: usize::try_from(start).ok()?,
             count: (2 * r / step + 1) as usize,
-            du0: -r as f64,
             y_start: (y0 - r + top * step) as usize,
             dv0: (top * step - r) as f64,
             rows: (bottom - top + 1) as usize,
@@ -424,7 +422,7 @@ impl<'a> LocalFitter<'a> {
             {
                 for l in 0..LANES {
                     let i = c * LANES + l;
-                    let du = window.du0 + i as f64 * step;
+                    let du = i as f64 * step - r as f64;
                     let w = values[l] as f64;
                     let t = (w - (plane.a * du + row_offset)) * inv_c;
                     let s = (1.0 - t * t).max(0.0);
