@@ -12,11 +12,19 @@
 //!   camera sees in front of it. Pixels without depth (sky, far lamps) are infinitely far. LDR
 //!   photos are expanded to HDR first (see [`inverse_tone_map`]). Directions the camera never saw
 //!   (behind it, above it, behind objects) are filled in two steps: small holes by pull-push (the
-//!   map averaged down a few pyramid levels counting only seen cells), and what is left by the
-//!   mean of the seen directions at the same elevation above the horizon of gravity `up`
+//!   map averaged down a few pyramid levels counting only seen cells), and what is left from the
+//!   seen directions at the same elevation above the horizon of gravity `up`
 //!   ([`Environment::from_photo_with_up`]): a room goes on behind the camera much as it looks in
-//!   front, floor below, walls at the horizon, ceiling above. Lights (detected or fitted) are
-//!   then drawn into the map as discs of their solid angle.
+//!   front, floor below, walls at the horizon, ceiling above. An elevation band seen over less
+//!   than 5 % of its solid angle (a lamp's fixture at the top of the frame) is no sample of its
+//!   band: bands take the nearest band seen over more, and bright pixels (lights and their
+//!   glare, as [`crate::light::detect_sources`] finds them) are never copied. When the lights were fitted ([`crate::light::estimate_lighting`]),
+//!   the copy is relit: each unseen direction looks at a stand-in surface facing the point at
+//!   the room's median distance, and takes its band's mean times that surface's irradiance under
+//!   the fitted ambient and lights over the mean irradiance of the seen surfaces it copies (at
+//!   most 4×). A ceiling copied from the tops of walls is then as dark as the bounce light a
+//!   ceiling gets from a ceiling light, and bright under lamps that hang below it. Lights
+//!   (detected or fitted) are then drawn into the map as discs of their solid angle.
 //! - [`Environment::from_cube`]: a cube map directly.
 //!
 //! SH projection robustness: every texel is made finite and non-negative (NaN → 0, negative → 0,
@@ -34,6 +42,7 @@ use super::model::{
     cube_direction, cube_texel, CubeLevel, CubeMap, Light, LightKind, Sh9, CUBE_FACES,
 };
 use super::prefilter::prefilter_ggx;
+use super::sources::{bright_pixels, SourceOptions};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::image::Raster;
@@ -328,51 +337,89 @@ const HOLE_LEVELS: u32 = 3;
 /// Elevation bands of [`fill_by_elevation`] (equal in solid angle).
 const ELEVATION_BANDS: usize = 24;
 
-/// Fills the cells of an equirect map that have no weight with the mean of the seen cells at the
-/// same elevation above the horizon of `up` (by solid angle; bands with nothing seen take the
-/// nearest band that has something): a room goes on around the point behind the camera much as
-/// it looks in front of it, its floor below, its walls at the horizon, its ceiling above.
-fn fill_by_elevation(values: &mut Raster<[f32; 3]>, weight: &mut Raster<f32>, up: Vec3) {
+/// Fills the cells of an equirect map that have no weight from the seen cells (those `copyable`
+/// per cell, row-major) at the same elevation above the horizon of `up` (by solid angle; bands with nothing seen take the nearest
+/// band that has something): a room goes on around the point behind the camera much as it looks
+/// in front of it, its floor below, its walls at the horizon, its ceiling above.
+///
+/// Without `shading` an unseen cell takes its band's mean. With it (per cell, the relative
+/// irradiance of the surface the cell looks at, [`super::relight`]), the band's surfaces are
+/// relit to the cell: the band's mean times the cell's shading over the band's mean shading
+/// (at most [`MAX_RELIGHT`]). A ceiling copied from the tops of walls that a ceiling light
+/// grazes is then as dark as the bounce light it gets; one under lamps hanging below it, bright.
+fn fill_by_elevation(
+    values: &mut Raster<[f32; 3]>,
+    weight: &mut Raster<f32>,
+    copyable: &[bool],
+    up: Vec3,
+    shading: Option<&Raster<f32>>,
+) {
     let (w, h) = (values.width(), values.height());
     let band_of = |x: usize, y: usize| {
         let d = equirect_direction((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
         let e = d.dot(up).clamp(-1.0, 1.0);
         (((e + 1.0) / 2.0 * ELEVATION_BANDS as f32) as usize).min(ELEVATION_BANDS - 1)
     };
+    let shade = |x: usize, y: usize| shading.map_or(1.0, |s| *s.get(x, y) as f64);
     let mut sum = [[0.0f64; 3]; ELEVATION_BANDS];
+    let mut shade_sum = [0.0f64; ELEVATION_BANDS];
     let mut area = [0.0f64; ELEVATION_BANDS];
     for y in 0..h {
         let a = (((y as f32 + 0.5) / h as f32) * std::f32::consts::PI).sin() as f64;
         for x in 0..w {
-            if *weight.get(x, y) > 0.0 {
+            if *weight.get(x, y) > 0.0 && copyable[y * w + x] {
                 let b = band_of(x, y);
                 let c = values.get(x, y);
                 for k in 0..3 {
                     sum[b][k] += c[k] as f64 * a;
                 }
+                shade_sum[b] += shade(x, y) * a;
                 area[b] += a;
             }
         }
     }
-    let filled: Vec<Option<[f32; 3]>> = (0..ELEVATION_BANDS)
+    // Per band: the band it copies (mean colour, mean shading): the nearest band seen over at
+    // least MIN_SOURCE_COVERAGE of its solid angle (itself when it is), since a band of which a
+    // few cells are seen (a lamp's fixture, an edge) is no sample of it; when no band is, the
+    // nearest band with anything seen.
+    let band_area = (0..h)
+        .map(|y| (((y as f32 + 0.5) / h as f32) * std::f32::consts::PI).sin() as f64 * w as f64)
+        .sum::<f64>()
+        / ELEVATION_BANDS as f64;
+    let covered = |o: usize| area[o] >= MIN_SOURCE_COVERAGE * band_area;
+    let any_covered = (0..ELEVATION_BANDS).any(covered);
+    let source: Vec<Option<([f64; 3], f64)>> = (0..ELEVATION_BANDS)
         .map(|b| {
             (0..ELEVATION_BANDS)
-                .filter(|&o| area[o] > 0.0)
+                .filter(|&o| area[o] > 0.0 && (!any_covered || covered(o)))
                 .min_by_key(|&o| o.abs_diff(b))
-                .map(|o| sum[o].map(|v| (v / area[o]) as f32))
+                .map(|o| (sum[o].map(|v| v / area[o]), shade_sum[o] / area[o]))
         })
         .collect();
     for y in 0..h {
         for x in 0..w {
             if *weight.get(x, y) <= 0.0 {
-                if let Some(c) = filled[band_of(x, y)] {
-                    *values.get_mut(x, y) = c;
+                if let Some((mean, mean_shade)) = source[band_of(x, y)] {
+                    let relight = if shading.is_some() && mean_shade > 1e-12 {
+                        (shade(x, y) / mean_shade).clamp(0.0, MAX_RELIGHT)
+                    } else {
+                        1.0
+                    };
+                    *values.get_mut(x, y) = mean.map(|v| (v * relight) as f32);
                     *weight.get_mut(x, y) = 1e-3;
                 }
             }
         }
     }
 }
+
+/// The share of a band's solid angle that must be seen for it to fill the bands that have
+/// nothing seen (see [`fill_by_elevation`]).
+const MIN_SOURCE_COVERAGE: f64 = 0.05;
+
+/// The most an unseen cell is relit above the band it copies (see [`fill_by_elevation`]): a
+/// proxy surface next to a lamp would otherwise take the lamp's `1/r²` peak into the map.
+const MAX_RELIGHT: f64 = 4.0;
 
 /// Steps of the ray march of [`march`] (geometric in distance).
 const MARCH_STEPS: usize = 192;
@@ -389,6 +436,28 @@ pub(crate) struct PhotoReprojection {
 }
 
 impl PhotoReprojection {
+    /// The point the directions start from (camera frame, metres).
+    pub(crate) fn point(&self) -> Vec3 {
+        self.point
+    }
+
+    /// The size of the photo marched over, pixels.
+    pub(crate) fn photo_size(&self) -> (usize, usize) {
+        self.photo_size
+    }
+
+    /// The equirect grid: `(4n, 2n)` cells for face size `n`.
+    pub(crate) fn cells(&self) -> (usize, usize) {
+        let n = self.face_size as usize;
+        (4 * n, 2 * n)
+    }
+
+    /// Per cell (row-major over [`PhotoReprojection::cells`]), the photo pixel its direction
+    /// meets, if any.
+    pub(crate) fn hits(&self) -> &[Option<(u32, u32)>] {
+        &self.hits
+    }
+
     /// Marches every direction from `point` (camera frame, metres) through `depth` (metres along
     /// the optical axis, NaN/inf = unknown: taken as infinitely far).
     ///
@@ -596,7 +665,7 @@ impl Environment {
         options: &EnvironmentOptions,
     ) -> Result<Environment> {
         let reprojection = PhotoReprojection::new(photo, depth, camera, point, options.face_size)?;
-        Environment::from_reprojection(photo, &reprojection, up, lights, options)
+        Environment::from_reprojection(photo, &reprojection, up, lights, None, options)
     }
 
     /// [`Environment::from_photo_with_up`] from a ray march already done: several environments
@@ -611,9 +680,22 @@ impl Environment {
         reprojection: &PhotoReprojection,
         up: Vec3,
         lights: &[Light],
+        shading: Option<&Raster<f32>>,
         options: &EnvironmentOptions,
     ) -> Result<Environment> {
         options.validate()?;
+        if let Some(s) = shading {
+            let cells = reprojection.cells();
+            if (s.width(), s.height()) != cells {
+                return Err(Error::SizeMismatch(format!(
+                    "unseen-direction shading is {}x{} but the reprojection has {}x{} cells",
+                    s.width(),
+                    s.height(),
+                    cells.0,
+                    cells.1
+                )));
+            }
+        }
         if options.face_size != reprojection.face_size {
             return Err(Error::invalid(format!(
                 "environment face_size {} differs from the reprojection's {}",
@@ -658,6 +740,16 @@ impl Environment {
                 })
             })
             .collect();
+        // Lights and their glare (the pixels the source detector calls bright: clipped in an LDR
+        // photo, near the top of the range in an HDR one): what they show at one direction says
+        // nothing about the unseen directions at its elevation.
+        let defaults = SourceOptions::default();
+        let bright = bright_pixels(photo, defaults.saturation, defaults.hdr_fraction);
+        let copyable: Vec<bool> = reprojection
+            .hits
+            .iter()
+            .map(|hit| hit.is_none_or(|(px, py)| !*bright.get(px as usize, py as usize)))
+            .collect();
         let mut weight = Raster::from_vec(
             ew,
             eh,
@@ -684,7 +776,7 @@ impl Environment {
         }
         if seen > 0.0 {
             pull_push(&mut values, &mut weight, HOLE_LEVELS);
-            fill_by_elevation(&mut values, &mut weight, up);
+            fill_by_elevation(&mut values, &mut weight, &copyable, up, shading);
         }
         let mut level = equirect_to_cube(&values, n);
         for light in lights {
@@ -1061,6 +1153,148 @@ mod tests {
         .contains("up"));
     }
 
+    /// An equirect map of 64 × 32 cells: `seen(direction)` gives a seen cell's value, `None`
+    /// leaves it unseen; and the elevation of each cell's direction above +Y.
+    fn band_map(seen: impl Fn(Vec3) -> Option<f32>) -> (Raster<[f32; 3]>, Raster<f32>, Vec<f32>) {
+        let (w, h) = (64, 32);
+        let direction = |x: usize, y: usize| {
+            equirect_direction((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32)
+        };
+        let values = Raster::from_fn(w, h, |x, y| [seen(direction(x, y)).unwrap_or(0.0); 3]);
+        let weight = Raster::from_fn(w, h, |x, y| {
+            if seen(direction(x, y)).is_some() {
+                1.0
+            } else {
+                0.0
+            }
+        });
+        let elevation = (0..w * h).map(|i| direction(i % w, i / w).y).collect();
+        (values, weight, elevation)
+    }
+
+    #[test]
+    fn unseen_bands_copy_well_seen_bands_not_stray_or_clipped_cells() {
+        // Walls (0.2) seen up to 30° above the horizon, four bright cells of a lamp fixture just
+        // above them, nothing higher: the ceiling copies the walls, not the fixture (the nearest
+        // band with anything seen, which the fill took before).
+        let fixture = |d: Vec3| d.y > 0.55 && d.y < 0.7 && d.x > 0.0 && d.z < 0.0 && d.x < 0.2;
+        let (mut values, mut weight, elevation) = band_map(|d| {
+            if fixture(d) {
+                Some(3.0)
+            } else {
+                (d.y < 0.5).then_some(0.2)
+            }
+        });
+        let fixture_cells = (0..values.len())
+            .filter(|&i| *weight.get(i % 64, i / 64) > 0.0 && elevation[i] > 0.5)
+            .count();
+        assert!(
+            (1..=8).contains(&fixture_cells),
+            "{fixture_cells} fixture cells"
+        );
+        let copyable = vec![true; values.len()];
+        fill_by_elevation(&mut values, &mut weight, &copyable, Vec3::Y, None);
+        for (i, e) in elevation.iter().enumerate() {
+            if *e > 0.7 {
+                let v = values.get(i % 64, i / 64)[0];
+                assert!((v - 0.2).abs() < 1e-5, "elevation {e}: {v}");
+            }
+        }
+        // Clipped cells are not copied: half of the walls' top band a bright window, marked as
+        // not copyable; the rest of that band and the ceiling take the walls' 0.2.
+        let window = |d: Vec3| d.y > 0.3 && d.y < 0.5 && d.x > 0.0;
+        let (mut values, mut weight, elevation) = band_map(|d| {
+            if window(d) {
+                Some(1.0)
+            } else {
+                (d.y < 0.5).then_some(0.2)
+            }
+        });
+        let (w, h) = (values.width(), values.height());
+        let copyable: Vec<bool> = (0..w * h)
+            .map(|i| values.get(i % w, i / w)[0] < 1.0)
+            .collect();
+        fill_by_elevation(&mut values, &mut weight, &copyable, Vec3::Y, None);
+        for (i, e) in elevation.iter().enumerate() {
+            if *e > 0.5 {
+                let v = values.get(i % w, i / w)[0];
+                assert!((v - 0.2).abs() < 1e-5, "elevation {e}: {v}");
+            }
+        }
+    }
+
+    #[test]
+    fn clipped_pixels_of_an_ldr_photo_are_not_copied_to_unseen_directions() {
+        // The sky rows between 20° and 35° above the horizon clipped (a bright window): behind
+        // the camera at that elevation the map shows the sky as without them, not the window.
+        let (camera, depth, photo) = table_scene();
+        let clipped = Raster::from_fn(photo.width(), photo.height(), |x, y| {
+            let d = camera
+                .ray_direction(x as f32 + 0.5, y as f32 + 0.5)
+                .normalize();
+            if d.y > 0.34 && d.y < 0.57 {
+                [1.0; 3]
+            } else {
+                *photo.get(x, y)
+            }
+        });
+        let point = Vec3::new(0.0, -0.3, -1.0);
+        let behind = Vec3::new(0.3, 0.5, 1.0).normalize();
+        let at = |photo: &Raster<[f32; 3]>| {
+            let env = Environment::from_photo(
+                photo,
+                Some(&depth),
+                &camera,
+                point,
+                &[],
+                &Default::default(),
+            )
+            .unwrap();
+            super::super::prefilter::sample_cube(&env.cube.levels[0], behind)[0]
+        };
+        let (plain, with_window) = (at(&photo), at(&clipped));
+        assert!(
+            (with_window - plain).abs() < 1e-3 * plain,
+            "{with_window} against {plain}"
+        );
+    }
+
+    #[test]
+    fn unseen_cells_are_relit_by_their_shading_within_a_cap() {
+        // Walls of 0.3 seen below 30°, under shading 2; the unseen ceiling under shading 1 takes
+        // half of them, a cell under shading 100 at most 4×.
+        let (mut values, mut weight, elevation) = band_map(|d| (d.y < 0.5).then_some(0.3));
+        let (w, h) = (values.width(), values.height());
+        let bright = w * 2 + 5;
+        assert!(elevation[bright] > 0.9);
+        let shading = Raster::from_fn(w, h, |x, y| {
+            let i = y * w + x;
+            if i == bright {
+                100.0
+            } else if elevation[i] < 0.5 {
+                2.0
+            } else {
+                1.0
+            }
+        });
+        let copyable = vec![true; w * h];
+        fill_by_elevation(&mut values, &mut weight, &copyable, Vec3::Y, Some(&shading));
+        for (i, e) in elevation.iter().enumerate() {
+            let v = values.get(i % w, i / w)[0];
+            let want = if i == bright {
+                0.3 * MAX_RELIGHT as f32
+            } else if *e < 0.5 {
+                0.3
+            } else {
+                0.15
+            };
+            assert!(
+                (v - want).abs() < 1e-5,
+                "cell {i}, elevation {e}: {v}, want {want}"
+            );
+        }
+    }
+
     #[test]
     fn one_reprojection_serves_environments_of_other_expansions_and_lights() {
         let (camera, depth, photo) = table_scene();
@@ -1093,7 +1327,7 @@ mod tests {
             )
             .unwrap();
             let from_shared =
-                Environment::from_reprojection(&photo, &shared, Vec3::Y, &lights, &options)
+                Environment::from_reprojection(&photo, &shared, Vec3::Y, &lights, None, &options)
                     .unwrap();
             assert_eq!(direct, from_shared);
         }
@@ -1102,12 +1336,12 @@ mod tests {
             face_size: options.face_size / 2,
             ..options
         };
-        let err =
-            Environment::from_reprojection(&photo, &shared, Vec3::Y, &[], &other_size).unwrap_err();
+        let err = Environment::from_reprojection(&photo, &shared, Vec3::Y, &[], None, &other_size)
+            .unwrap_err();
         assert!(err.to_string().contains("face_size"), "{err}");
         let small = Raster::filled(4, 4, [0.5f32; 3]);
         assert!(matches!(
-            Environment::from_reprojection(&small, &shared, Vec3::Y, &[], &options),
+            Environment::from_reprojection(&small, &shared, Vec3::Y, &[], None, &options),
             Err(Error::SizeMismatch(_))
         ));
     }

@@ -8,6 +8,7 @@ use super::filters::{check_same, check_size, luminance};
 use super::fit::{fit_lights, FitInputs, FitOptions, LightFit};
 use super::model::{Light, LightKind};
 use super::normals::normals_from_depth;
+use super::relight::proxy_shading;
 use super::shadow_mask::{continuity_regions, shadow_mask, ShadowOptions, NO_REGION};
 use super::sources::{detect_sources, SourceOptions};
 use crate::camera::Camera;
@@ -100,6 +101,7 @@ fn calibrate_to_environment(
     photo: &Raster<[f32; 3]>,
     reprojection: &PhotoReprojection,
     up: Vec3,
+    shading: Option<&Raster<f32>>,
     options: &EnvironmentOptions,
 ) -> Result<LightFit> {
     let fit_ambient = luminance(fit.ambient);
@@ -111,6 +113,7 @@ fn calibrate_to_environment(
         reprojection,
         up,
         &[],
+        shading,
         &EnvironmentOptions {
             ldr_peak: 1.0,
             ..*options
@@ -233,12 +236,35 @@ pub fn estimate_lighting(
         point,
         options.environment.face_size,
     )?;
-    let fit = calibrate_to_environment(fit, photo, &reprojection, up_v, &options.environment)?;
+    // Unseen directions are filled with surfaces lit as the fit says; a fallback inferred
+    // nothing, so they are filled by elevation alone.
+    let shading = if fit.fallback_used {
+        None
+    } else {
+        Some(proxy_shading(
+            &reprojection,
+            depth,
+            &normals,
+            camera,
+            up_v,
+            luminance(fit.ambient),
+            &fit.lights,
+        )?)
+    };
+    let fit = calibrate_to_environment(
+        fit,
+        photo,
+        &reprojection,
+        up_v,
+        shading.as_ref(),
+        &options.environment,
+    )?;
     let environment = Environment::from_reprojection(
         photo,
         &reprojection,
         up_v,
         &fit.lights,
+        shading.as_ref(),
         &options.environment,
     )?;
     Ok(LightingEstimate {
@@ -292,7 +318,7 @@ mod tests {
             let reprojection =
                 PhotoReprojection::new(photo, Some(&depth), &camera, point, options.face_size)
                     .unwrap();
-            calibrate_to_environment(fit, photo, &reprojection, Vec3::Y, &options).unwrap()
+            calibrate_to_environment(fit, photo, &reprojection, Vec3::Y, None, &options).unwrap()
         };
         let out = calibrate(fit(vec![lamp, sun], ambient, false), &photo);
         for (a, b) in out.ambient.iter().zip([0.4, 0.3, 0.2]) {

@@ -249,24 +249,16 @@ fn visible(
 /// unit direction towards the light and how far a visibility march must go; `None` when the
 /// sample faces away or lies behind an area light.
 fn geometry(light: &Light, s: &Sample, reach: f32) -> Option<(f32, Vec3, f32)> {
-    let (l, dist) = light.towards(s.p);
-    let cos = s.n.dot(l);
-    if cos <= 0.0 {
+    let shade = light.unshadowed_term(s.p, s.n);
+    if shade <= 0.0 {
         return None;
     }
-    let (falloff, max_dist) = match light.kind {
-        LightKind::Directional => (1.0, reach),
-        LightKind::Point | LightKind::Area => {
-            let facing = if light.kind == LightKind::Area {
-                (-l).dot(Vec3::from(light.direction).normalize_or_zero())
-                    .max(0.0)
-            } else {
-                1.0
-            };
-            (facing / (dist * dist).max(1e-4), (dist * 0.95).min(reach))
-        }
+    let (l, dist) = light.towards(s.p);
+    let max_dist = match light.kind {
+        LightKind::Directional => reach,
+        LightKind::Point | LightKind::Area => (dist * 0.95).min(reach),
     };
-    (falloff > 0.0).then_some((cos * falloff, l, max_dist))
+    Some((shade, l, max_dist))
 }
 
 /// The body of a light at a position (centre, reach), for [`visible`].

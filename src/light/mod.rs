@@ -8,6 +8,7 @@
 //! | [`environment`] | HDR radiance around the insertion point (photo re-projection, host maps) and its SH9 |
 //! | [`estimate`] | every stage in one call, for the Scene and the CLI |
 //! | [`fit`] | inverse rendering: the out-of-view light and ambient that explain the shading and shadows |
+//! | `relight` | how the fitted lights shade the surfaces around the insertion point (fills unseen directions) |
 //! | [`prefilter`] | GGX-prefiltered cube mips, the DFG table, the thesis' roughness approximation |
 //! | [`normals`] | per-pixel normals from depth |
 //! | `filters` | small image filters the estimators share |
@@ -19,6 +20,7 @@ pub mod fit;
 pub mod model;
 pub mod normals;
 pub mod prefilter;
+mod relight;
 pub mod shadow_mask;
 pub mod sources;
 

@@ -132,6 +132,31 @@ impl Light {
         }
     }
 
+    /// The unoccluded geometric term of this light at a surface point `p` with unit normal `n`:
+    /// `max(0, n·l)` for a directional light; that over the squared distance (at least 1 cm²)
+    /// for a light at a position, times the disc's facing cosine for an area light. Multiplied
+    /// by `intensity / π` it is the irradiance over π, so a surface of albedo ρ shows
+    /// `ρ · intensity / π · term` (0 when the surface faces away or lies behind a disc).
+    pub fn unshadowed_term(&self, p: Vec3, n: Vec3) -> f32 {
+        let (l, dist) = self.towards(p);
+        let cos = n.dot(l);
+        if cos.is_nan() || cos <= 0.0 {
+            return 0.0;
+        }
+        match self.kind {
+            LightKind::Directional => cos,
+            LightKind::Point | LightKind::Area => {
+                let facing = if self.kind == LightKind::Area {
+                    (-l).dot(Vec3::from(self.direction).normalize_or_zero())
+                        .max(0.0)
+                } else {
+                    1.0
+                };
+                cos * facing / (dist * dist).max(1e-4)
+            }
+        }
+    }
+
     /// The unit direction from a surface point `p` towards the light, and the distance to it
     /// (infinite for a directional light).
     pub fn towards(&self, p: Vec3) -> (Vec3, f32) {

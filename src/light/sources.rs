@@ -109,6 +109,30 @@ impl SourceOptions {
 /// bulb: 2/3 over the visible half of a sphere) or without the blob's own depth it is a sphere.
 const PANEL_COHERENCE: f32 = 0.9;
 
+/// The bright pixels of a photo (see the module documentation): in an LDR photo those whose
+/// largest channel reaches `saturation`; in an HDR one (robust maximum luminance above 1.0) those
+/// above 1.0 with at least `hdr_fraction` of the robust maximum.
+pub(crate) fn bright_pixels(
+    photo: &Raster<[f32; 3]>,
+    saturation: f32,
+    hdr_fraction: f32,
+) -> Raster<bool> {
+    let luma = photo.map(|c| luminance(*c));
+    let mut sorted: Vec<f32> = luma.pixels().to_vec();
+    sorted.sort_unstable_by(f32::total_cmp);
+    // Robust maximum: ignores a handful of hot pixels.
+    let robust_max = sorted
+        .get(((sorted.len().max(1) - 1) as f64 * 0.9995) as usize)
+        .copied()
+        .unwrap_or(0.0);
+    if robust_max > 1.0 {
+        luma.map(|y| *y > 1.0 && *y >= hdr_fraction * robust_max)
+    } else {
+        let clean = |v: f32| if v.is_finite() { v.max(0.0) } else { 0.0 };
+        photo.map(|c| c.iter().fold(0.0f32, |m, v| m.max(clean(*v))) >= saturation)
+    }
+}
+
 /// Finds the light sources visible in a linear RGB photo.
 ///
 /// `depth` (metres along the optical axis, NaN/inf = unknown) places each light; without depth, or
@@ -137,23 +161,10 @@ pub fn detect_sources(
     if let Some(d) = depth {
         check_same("depth map", photo, d)?;
     }
+    let bright = bright_pixels(photo, options.saturation, options.hdr_fraction);
     let luma = photo.map(|c| luminance(*c));
     let clean = |c: [f32; 3]| c.map(|v| if v.is_finite() { v.max(0.0) } else { 0.0 });
-    let max_channel = photo.map(|c| clean(*c).into_iter().fold(0.0f32, f32::max));
-    let mut sorted: Vec<f32> = luma.pixels().to_vec();
-    sorted.sort_unstable_by(f32::total_cmp);
-    // Robust maximum: ignores a handful of hot pixels.
-    let robust_max = sorted[((sorted.len() - 1) as f64 * 0.9995) as usize];
-    let hdr = robust_max > 1.0;
-    let bright = |x: usize, y: usize| {
-        if hdr {
-            let y = *luma.get(x, y);
-            y > 1.0 && y >= options.hdr_fraction * robust_max
-        } else {
-            *max_channel.get(x, y) >= options.saturation
-        }
-    };
-    let (label, groups) = components(w, h, bright);
+    let (label, groups) = components(w, h, |x, y| *bright.get(x, y));
     let normals = match depth {
         Some(d) => Some(normals_from_depth(d, camera, 0.05)?),
         None => None,
