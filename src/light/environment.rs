@@ -18,9 +18,9 @@
 //!   front, floor below, walls at the horizon, ceiling above. An elevation band seen over less
 //!   than 5 % of its solid angle (a lamp's fixture at the top of the frame) is no sample of its
 //!   band: bands take the nearest band seen over more, and bright pixels (lights and their
-//!   glare, as [`crate::light::detect_sources`] finds them) are never copied. When the lights were fitted ([`crate::light::estimate_lighting`]),
-//!   the copy is relit: each unseen direction looks at a stand-in surface facing the point at
-//!   the room's median distance, and takes its band's mean times that surface's irradiance under
+//!   glare, as [`crate::light::detect_sources`] finds them) are never copied. When the lights
+//!   were fitted ([`crate::light::estimate_lighting`]), the copy is relit: each unseen direction
+//!   looks at a stand-in surface facing the point at the room's median distance, and takes its band's mean times that surface's irradiance under
 //!   the fitted ambient and lights over the mean irradiance of the seen surfaces it copies (at
 //!   most 4×). A ceiling copied from the tops of walls is then as dark as the bounce light a
 //!   ceiling gets from a ceiling light, and bright under lamps that hang below it. Lights
@@ -338,11 +338,12 @@ const HOLE_LEVELS: u32 = 3;
 const ELEVATION_BANDS: usize = 24;
 
 /// Fills the cells of an equirect map that have no weight from the seen cells (those `copyable`
-/// per cell, row-major) at the same elevation above the horizon of `up` (by solid angle; bands with nothing seen take the nearest
-/// band that has something): a room goes on around the point behind the camera much as it looks
-/// in front of it, its floor below, its walls at the horizon, its ceiling above.
+/// per cell, row-major) at the same elevation above the horizon of `up`: a room goes on around
+/// the point behind the camera much as it looks in front of it, its floor below, its walls at the
+/// horizon, its ceiling above. A band seen over less than [`MIN_SOURCE_COVERAGE`] of its solid
+/// angle copies the nearest band seen over more (when none is, the nearest with anything seen).
 ///
-/// Without `shading` an unseen cell takes its band's mean. With it (per cell, the relative
+/// Without `shading` an unseen cell takes the mean of the band it copies. With it (per cell, the relative
 /// irradiance of the surface the cell looks at, [`super::relight`]), the band's surfaces are
 /// relit to the cell: the band's mean times the cell's shading over the band's mean shading
 /// (at most [`MAX_RELIGHT`]). A ceiling copied from the tops of walls that a ceiling light
@@ -364,8 +365,10 @@ fn fill_by_elevation(
     let mut sum = [[0.0f64; 3]; ELEVATION_BANDS];
     let mut shade_sum = [0.0f64; ELEVATION_BANDS];
     let mut area = [0.0f64; ELEVATION_BANDS];
+    let mut sphere_area = 0.0f64;
     for y in 0..h {
         let a = (((y as f32 + 0.5) / h as f32) * std::f32::consts::PI).sin() as f64;
+        sphere_area += a * w as f64;
         for x in 0..w {
             if *weight.get(x, y) > 0.0 && copyable[y * w + x] {
                 let b = band_of(x, y);
@@ -382,10 +385,7 @@ fn fill_by_elevation(
     // least MIN_SOURCE_COVERAGE of its solid angle (itself when it is), since a band of which a
     // few cells are seen (a lamp's fixture, an edge) is no sample of it; when no band is, the
     // nearest band with anything seen.
-    let band_area = (0..h)
-        .map(|y| (((y as f32 + 0.5) / h as f32) * std::f32::consts::PI).sin() as f64 * w as f64)
-        .sum::<f64>()
-        / ELEVATION_BANDS as f64;
+    let band_area = sphere_area / ELEVATION_BANDS as f64;
     let covered = |o: usize| area[o] >= MIN_SOURCE_COVERAGE * band_area;
     let any_covered = (0..ELEVATION_BANDS).any(covered);
     let source: Vec<Option<([f64; 3], f64)>> = (0..ELEVATION_BANDS)
@@ -1174,7 +1174,7 @@ mod tests {
 
     #[test]
     fn unseen_bands_copy_well_seen_bands_not_stray_or_clipped_cells() {
-        // Walls (0.2) seen up to 30° above the horizon, four bright cells of a lamp fixture just
+        // Walls (0.2) seen up to 30° above the horizon, a few bright cells of a lamp fixture just
         // above them, nothing higher: the ceiling copies the walls, not the fixture (the nearest
         // band with anything seen, which the fill took before).
         let fixture = |d: Vec3| d.y > 0.55 && d.y < 0.7 && d.x > 0.0 && d.z < 0.0 && d.x < 0.2;

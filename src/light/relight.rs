@@ -246,58 +246,35 @@ mod tests {
         let reprojection =
             PhotoReprojection::new(&photo, Some(&depth), &camera, Vec3::new(0.0, 0.0, -1.0), 8)
                 .unwrap();
-        let small = Raster::filled(4, 4, 1.0f32);
+        let shade =
+            |depth: &Raster<f32>, normals: &Raster<[f32; 3]>, ambient: f32, lights: &[Light]| {
+                proxy_shading(
+                    &reprojection,
+                    depth,
+                    normals,
+                    &camera,
+                    Vec3::Y,
+                    ambient,
+                    lights,
+                )
+            };
+        let no_normals = Raster::filled(4, 4, [0.0f32; 3]);
         assert!(matches!(
-            proxy_shading(
-                &reprojection,
-                &small,
-                &Raster::filled(4, 4, [0.0f32; 3]),
-                &camera,
-                Vec3::Y,
-                0.1,
-                &[]
-            ),
+            shade(&Raster::filled(4, 4, 1.0f32), &no_normals, 0.1, &[]),
             Err(Error::SizeMismatch(_))
         ));
         assert!(matches!(
-            proxy_shading(
-                &reprojection,
-                &depth,
-                &Raster::filled(4, 4, [0.0f32; 3]),
-                &camera,
-                Vec3::Y,
-                0.1,
-                &[]
-            ),
+            shade(&depth, &no_normals, 0.1, &[]),
             Err(Error::SizeMismatch(_))
         ));
         for ambient in [f32::NAN, -1.0, f32::INFINITY] {
-            let err = proxy_shading(
-                &reprojection,
-                &depth,
-                &normals,
-                &camera,
-                Vec3::Y,
-                ambient,
-                &[],
-            )
-            .unwrap_err();
+            let err = shade(&depth, &normals, ambient, &[]).unwrap_err();
             assert!(err.to_string().contains("ambient"), "{err}");
         }
         let bad = Light::directional([0.0, -1.0, 0.0], 1.0, [f32::NAN; 3]);
-        assert!(proxy_shading(
-            &reprojection,
-            &depth,
-            &normals,
-            &camera,
-            Vec3::Y,
-            0.1,
-            &[bad]
-        )
-        .is_err());
+        assert!(shade(&depth, &normals, 0.1, &[bad]).is_err());
         // Without lights every surface gets the ambient.
-        let shading =
-            proxy_shading(&reprojection, &depth, &normals, &camera, Vec3::Y, 0.25, &[]).unwrap();
+        let shading = shade(&depth, &normals, 0.25, &[]).unwrap();
         assert_eq!(shading.width(), 32);
         assert!(shading.pixels().iter().all(|s| *s == 0.25));
     }

@@ -118,13 +118,15 @@ pub(crate) fn bright_pixels(
     hdr_fraction: f32,
 ) -> Raster<bool> {
     let luma = photo.map(|c| luminance(*c));
-    let mut sorted: Vec<f32> = luma.pixels().to_vec();
-    sorted.sort_unstable_by(f32::total_cmp);
-    // Robust maximum: ignores a handful of hot pixels.
-    let robust_max = sorted
-        .get(((sorted.len().max(1) - 1) as f64 * 0.9995) as usize)
-        .copied()
-        .unwrap_or(0.0);
+    // Robust maximum: ignores a handful of hot pixels. A selection, not a sort: this runs on
+    // every environment built from a photo.
+    let mut values: Vec<f32> = luma.pixels().to_vec();
+    let robust_max = if values.is_empty() {
+        0.0
+    } else {
+        let rank = ((values.len() - 1) as f64 * 0.9995) as usize;
+        *values.select_nth_unstable_by(rank, f32::total_cmp).1
+    };
     if robust_max > 1.0 {
         luma.map(|y| *y > 1.0 && *y >= hdr_fraction * robust_max)
     } else {
