@@ -57,6 +57,14 @@ int main(void) {
     CHECK_STATUS(scene, plx_scene_main_light(scene, dir, rgb), PLX_STATUS_OK);
     CHECK(rgb[0] == 8 && rgb[1] == 7 && rgb[2] == 6);
     CHECK(dir[1] > 0.7f);
+    /* Seen from 2 m in front of the camera without an insertion point (the lamp is 0.5 m to the
+     * right of it), from the insertion point with one (straight under the lamp). */
+    CHECK(dir[0] > 0.15f);
+    const float under_lamp[3] = {0.5f, 0.0f, -2.0f};
+    CHECK_STATUS(scene, plx_scene_set_insertion_point(scene, under_lamp), PLX_STATUS_OK);
+    CHECK_STATUS(scene, plx_scene_main_light(scene, dir, rgb), PLX_STATUS_OK);
+    CHECK(fabsf(dir[0]) < 1e-4f && dir[1] > 0.9999f);
+    CHECK_STATUS(scene, plx_scene_set_insertion_point(scene, NULL), PLX_STATUS_OK);
 
     /* Bad lights are refused by name and leave the scene unchanged. */
     plx_light bad = lights[0];

@@ -788,9 +788,10 @@ enum plx_status plx_scene_lights(struct plx_scene *scene,
                                  size_t *count);
 
 // The main light, as AR platforms give it: `direction[3]` the unit vector from the scene towards
-// the light (for a point or area light, from the camera-frame origin's side of the scene: the
-// direction towards its centre from 2 m in front of the camera), `rgb[3]` its intensity (see
-// `plx_light`). With an empty host light list both are zero. Errors as `plx_scene_lights`.
+// the light (for a point or area light, towards its centre from the insertion point: the host's
+// (`plx_scene_set_insertion_point`), else the estimate's, else, for host lights without one,
+// 2 m in front of the camera), `rgb[3]` its intensity (see `plx_light`). With an empty host light
+// list both are zero. Errors as `plx_scene_lights`.
 //
 // # Safety
 // `scene` is a live scene; `direction` and `rgb` point to 3 writable floats each.

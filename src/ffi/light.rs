@@ -241,9 +241,10 @@ pub unsafe extern "C" fn plx_scene_lights(
 }
 
 /// The main light, as AR platforms give it: `direction[3]` the unit vector from the scene towards
-/// the light (for a point or area light, from the camera-frame origin's side of the scene: the
-/// direction towards its centre from 2 m in front of the camera), `rgb[3]` its intensity (see
-/// `plx_light`). With an empty host light list both are zero. Errors as `plx_scene_lights`.
+/// the light (for a point or area light, towards its centre from the insertion point: the host's
+/// (`plx_scene_set_insertion_point`), else the estimate's, else, for host lights without one,
+/// 2 m in front of the camera), `rgb[3]` its intensity (see `plx_light`). With an empty host light
+/// list both are zero. Errors as `plx_scene_lights`.
 ///
 /// # Safety
 /// `scene` is a live scene; `direction` and `rgb` point to 3 writable floats each.
@@ -261,10 +262,10 @@ pub unsafe extern "C" fn plx_scene_main_light(
             return Err(null_argument("rgb"));
         }
         let (dir, intensity) = match scene.main_light()? {
-            Some(light) => (
-                light.towards(glam::Vec3::new(0.0, 0.0, -2.0)).0.to_array(),
-                light.intensity,
-            ),
+            Some(light) => {
+                let origin = glam::Vec3::from(scene.main_light_origin()?);
+                (light.towards(origin).0.to_array(), light.intensity)
+            }
             None => ([0.0; 3], [0.0; 3]),
         };
         std::ptr::copy_nonoverlapping(dir.as_ptr(), direction, 3);

@@ -126,7 +126,8 @@ fn calibrate_to_environment(
     }
     let scaled = |l: &Light| Light {
         intensity: if l.kind == LightKind::Directional {
-            // Out of view: no colour of its own is measured; white balance makes it neutral.
+            // Out of view: no colour of its own is measured; white balance makes it neutral (a
+            // fitted point light out of view comes neutral from the fit).
             [luminance(l.intensity) * lum_scale; 3]
         } else {
             l.intensity.map(|v| v * lum_scale)

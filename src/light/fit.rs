@@ -1,6 +1,7 @@
-//! Lights out of view, by inverse rendering (thesis §3.3.4, extended): the directional light and
-//! ambient term that best explain the shading of the photo's surfaces given their normals, in
-//! agreement with the cast shadows of the shadow mask; in-view sources are re-scaled on the way.
+//! Lights out of view, by inverse rendering (thesis §3.3.4, extended): the directional or point
+//! light and ambient term that best explain the shading of the photo's surfaces given their
+//! normals, in agreement with the cast shadows of the shadow mask; in-view sources are re-scaled on
+//! the way.
 //!
 //! Model, per sample pixel `i` on a continuous region `s` (Lambertian, one albedo per region):
 //! `Y_i = ρ_s · (A + Σ_j E_j · g_j(i))`, with `g_j = max(0, n·l_j) · V_j` for a directional light
@@ -10,20 +11,36 @@
 //! thickness, unless that surface is the light's own body), so cast shadows are part of the model:
 //! a direction whose shadows fall where the photo has none explains the shading worse. For a fixed
 //! set of lights the fit alternates between the light intensities `E`, `A` (non-negative least
-//! squares) and the albedos `ρ_s`. The direction of the out-of-view light is searched over the
-//! sphere above the horizon (Fibonacci points, then a finer set around the best), scoring the
-//! relative RMS residual plus the disagreement between the predicted cast shadow (the part of the
-//! light hidden from a sample) and the shadow mask. Its angular size is chosen among a few cone
-//! widths by the same score (wider cones give softer predicted shadows). A direction is only a
-//! candidate when at least 10 % of the samples face it unoccluded within 75.5° (cos ≥ 0.25): of a
-//! light that only grazes what the photo shows, only intensity × a small cosine is measured, and an
-//! object facing it would be lit by an arbitrary extrapolation.
+//! squares) and the albedos `ρ_s`.
+//!
+//! The out-of-view light is searched among candidates seen from the insertion point: directions
+//! over the sphere above the horizon (Fibonacci points) for a directional light, and, more
+//! coarsely (a quarter as many directions), points at 0.5, 1 and 2 times the median distance from
+//! the insertion point to the samples for a point light (a room's lamp hangs about as far away as
+//! its walls), each only when the insertion point sees it (not behind a surface of the photo). Each
+//! candidate is scored by the relative RMS residual plus the disagreement between the predicted
+//! cast shadow (the part of the light hidden from a sample) and the shadow mask. The best of each
+//! kind is then refined: a direction over a set four times as dense around it; a position by a
+//! pattern search over its three coordinates (a step along either tangent of its direction and its
+//! distance scaled by a factor, both halved when no step improves, down to 0.5°): a nearby lamp
+//! shows itself in how its light falls off and turns across the floor, which no single direction
+//! explains, and three coordinates on a grid would cost too many scores. The point light replaces
+//! the best direction only when it scores lower by the margin a light must bring over none
+//! (`FitOptions::min_improvement`): its extra parameter, the distance, lets a weak nearby light
+//! fit a local gradient (a sunlit patch, the falloff along a wall) that is no lamp. Its
+//! angular size, as seen from the insertion point, is chosen among a few cone widths by the same
+//! score (wider cones give softer predicted shadows). A candidate counts only when at least 10 % of
+//! the samples face it unoccluded within 75.5° (cos ≥ 0.25): of a light that only grazes what the
+//! photo shows, only intensity × a small cosine is measured, and an object facing it would be lit
+//! by an arbitrary extrapolation.
 //!
 //! Albedo and light intensity are only known up to a common factor: the fit fixes the median
-//! region albedo to `FitOptions::albedo` (0.5 by default). Colours come from the same fit per
-//! channel under the grey-world assumption (the median albedo is grey).
+//! region albedo to `FitOptions::albedo` (0.5 by default). The colours of the in-view sources and
+//! of the ambient term come from the same fit per channel under the grey-world assumption (the
+//! median albedo is grey); the fitted out-of-view light is kept neutral, since its colour trades
+//! off against the ambient term's and the few regions it lights.
 //!
-//! When nothing can be inferred (too few usable pixels, or no direction explains the shading
+//! When nothing can be inferred (too few usable pixels, or no candidate light explains the shading
 //! better than ambient light alone), the thesis' fallback is used: one light above the scene,
 //! and [`LightFit::fallback_used`] says so, so the caller can warn.
 
@@ -68,8 +85,9 @@ pub struct FitOptions {
     pub albedo: f32,
     /// Weight of the shadow-mask disagreement in the score (≥ 0).
     pub shadow_weight: f32,
-    /// Relative improvement over ambient (plus in-view lights) that a directional light must
-    /// bring to be kept, in [0, 1).
+    /// Relative improvement over ambient (plus in-view lights) that the fitted out-of-view light must
+    /// bring to be kept, and that a point light must bring over the best direction to replace it,
+    /// in [0, 1).
     pub min_improvement: f32,
     /// Where the main light is judged from (camera frame, metres): the light giving the most
     /// irradiance there is the main one. `None`: the median sample point.
@@ -156,12 +174,27 @@ pub struct LightFit {
     pub samples: usize,
 }
 
-/// A sample supports a directional light when it faces the light, unoccluded, at least this
-/// much (the cosine, 0.25: within 75.5° of the light).
+/// A sample supports an out-of-view candidate light when it faces the light, unoccluded, at least
+/// this much (the cosine, 0.25: within 75.5° of the light).
 const SUPPORT_COSINE: f32 = 0.25;
 
-/// Fraction of the samples that must support a directional light for it to be inferred.
+/// Fraction of the samples that must support an out-of-view candidate light for it to be inferred.
 const MIN_SUPPORT: f64 = 0.1;
+
+/// Distances of the positional candidates for the out-of-view light, relative to the median
+/// distance from the insertion point to the samples.
+const POINT_DISTANCES: [f32; 3] = [0.5, 1.0, 2.0];
+
+/// The refinement of a positional light stops when its angular step falls below this (0.5°).
+const POINT_REFINE_STOP_RAD: f32 = 0.5 * std::f32::consts::PI / 180.0;
+
+/// The refinement of a positional light takes at most this many rounds of steps, so that a score
+/// that keeps improving by tiny amounts cannot hold it up.
+const POINT_REFINE_MAX_ROUNDS: usize = 100;
+
+/// The coarse search of positional candidates uses this many times fewer directions than the
+/// directional one.
+const POINT_DIRECTION_DIVISOR: usize = 4;
 
 /// Largest relative residual of a fit that is still taken as an inference of the light.
 const MAX_EXPLAINED_RESIDUAL: f64 = 0.5;
@@ -277,14 +310,18 @@ fn term(light: &Light, s: &Sample, occluders: &Occluders, reach: f32) -> f32 {
 }
 
 /// Mean disagreement between the shadow a light predicts on each sample (the part of it hidden
-/// from the sample: 1 − lit ÷ unoccluded term) and the mask, over the samples facing `towards`
-/// (cos > 0.15), as a fraction of all samples.
-fn shadow_disagreement(samples: &[Sample], lit: &[f32], open: &[f32], towards: Vec3) -> f64 {
+/// from the sample: 1 − lit ÷ unoccluded term, from `lit_open`) and the mask, over the samples
+/// facing the light (cos > 0.15 towards `towards(sample)`), as a fraction of all samples.
+fn shadow_disagreement(
+    samples: &[Sample],
+    lit_open: &[(f32, f32, f32)],
+    towards: impl Fn(&Sample) -> Vec3,
+) -> f64 {
     let sum: f64 = samples
         .iter()
-        .zip(lit.iter().zip(open))
-        .map(|(s, (lit, open))| {
-            if s.n.dot(towards) > 0.15 && *open > 0.0 {
+        .zip(lit_open)
+        .map(|(s, (lit, open, _))| {
+            if *open > 0.0 && s.n.dot(towards(s)) > 0.15 {
                 let predicted = 1.0 - (lit / open).clamp(0.0, 1.0);
                 (predicted - s.mask).abs() as f64
             } else {
@@ -506,13 +543,16 @@ fn trimmed(
     }
 }
 
+/// Two unit vectors perpendicular to the unit vector `d` and to each other.
+fn tangents(d: Vec3) -> (Vec3, Vec3) {
+    let t = if d.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
+    let x = t.cross(d).normalize();
+    (x, d.cross(x))
+}
+
 /// Fibonacci points on the unit sphere with `d · up ≥ min_up`.
 fn fibonacci(count: usize, up: Vec3, min_up: f32) -> Vec<Vec3> {
-    let (tx, ty) = {
-        let t = if up.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
-        let x = t.cross(up).normalize();
-        (x, up.cross(x))
-    };
+    let (tx, ty) = tangents(up);
     // Enough points on the whole sphere that about `count` land in the cap.
     let total = ((2.0 * count as f32) / (1.0 - min_up).max(0.05)).ceil() as usize;
     (0..total)
@@ -710,28 +750,39 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     // Baseline: ambient plus the in-view lights.
     let baseline = alternate(&build(None), &luma, &regions, n_regions, options.albedo);
     let has_mask = inputs.shadow_mask.is_some();
-    let score_direction = |cone: &[Vec3]| -> (f64, f64, Vec<f32>) {
-        // Per sample: the cone's light with cast shadows, and without.
-        let (column, open): (Vec<f32>, Vec<f32>) = samples
+    // The out-of-view light seen from the insertion point: towards `d` at `distance` metres, or
+    // infinitely far (a directional light).
+    let candidate_light = |d: Vec3, distance: Option<f32>| match distance {
+        None => Light::directional((-d).to_array(), 0.0, [1.0; 3]),
+        Some(r) => Light::point((centre + d * r).to_array(), 0.0, [1.0; 3]),
+    };
+    let score = |cone: &[Vec3], distance: Option<f32>| -> (f64, f64, Vec<f32>) {
+        // Per sample: the cone's light with cast shadows, without, and the facing cosine towards
+        // the cone's centre when unoccluded.
+        let per_sample: Vec<(f32, f32, f32)> = samples
             .par_iter()
             .map(|s| {
-                let (mut lit, mut open) = (0.0, 0.0);
-                for d in cone {
-                    let light = Light::directional((-*d).to_array(), 0.0, [1.0; 3]);
+                let (mut lit, mut open, mut facing) = (0.0, 0.0, 0.0);
+                for (k, d) in cone.iter().enumerate() {
+                    let light = candidate_light(*d, distance);
                     if let Some((shade, l, max_dist)) = geometry(&light, s, reach) {
                         open += shade;
                         if visible(&occluders, s.p, s.n, l, max_dist, None) {
                             lit += shade;
+                            if k == 0 {
+                                facing = s.n.dot(l);
+                            }
                         }
                     }
                 }
-                (lit / cone.len() as f32, open / cone.len() as f32)
+                (lit / cone.len() as f32, open / cone.len() as f32, facing)
             })
-            .unzip();
+            .collect();
+        let column: Vec<f32> = per_sample.iter().map(|v| v.0).collect();
         // A light is inferred only from surfaces it lights: one that reaches the photo's
         // surfaces at grazing angles alone explains a faint gradient with any intensity, and
         // lights an object facing it (what the renderer then shows) by that extrapolation.
-        let supported = column.iter().filter(|g| **g >= SUPPORT_COSINE).count();
+        let supported = per_sample.iter().filter(|v| v.2 >= SUPPORT_COSINE).count();
         if (supported as f64) < MIN_SUPPORT * samples.len() as f64 {
             return (f64::INFINITY, 0.0, column);
         }
@@ -746,7 +797,8 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         // the samples facing the light, as a fraction of all samples (ambient alone, facing
         // nothing, disagrees nowhere).
         let disagreement = if has_mask {
-            shadow_disagreement(&samples, &column, &open, cone[0])
+            let centre_light = candidate_light(cone[0], distance);
+            shadow_disagreement(&samples, &per_sample, |s| centre_light.towards(s.p).0)
         } else {
             0.0
         };
@@ -756,40 +808,101 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             column,
         )
     };
-    let mut best: Option<(f64, Vec3)> = None;
-    for d in fibonacci(options.directions, up, -0.05) {
-        let (score, _, _) = score_direction(&[d]);
-        if best.is_none_or(|(b, _)| score < b) {
-            best = Some((score, d));
-        }
-    }
-    let Some((_, coarse)) = best else {
-        return Ok(fallback(samples.len()));
+    // A light at a position must be in the open as seen from the insertion point: not behind a
+    // surface of the photo.
+    let in_the_open = |d: Vec3, distance: Option<f32>| {
+        distance.is_none_or(|r| visible(&occluders, centre, d, d, r, None))
     };
-    // Finer search within about two coarse spacings of the best.
-    let spacing = (4.0 / options.directions as f32).sqrt();
-    for d in fibonacci(options.directions * 4, up, -0.05) {
-        if d.dot(coarse) > (2.0 * spacing).cos() {
-            let (score, _, _) = score_direction(&[d]);
-            if best.is_none_or(|(b, _)| score < b) {
-                best = Some((score, d));
+    // Distances of the positional candidates, in units of the median distance from the
+    // insertion point to the photo's surfaces (a room's lamps hang about as far away as its
+    // walls).
+    let spread = {
+        let mut r: Vec<f32> = samples.iter().map(|s| s.p.distance(centre)).collect();
+        if r.is_empty() {
+            1.0
+        } else {
+            let mid = r.len() / 2;
+            r.select_nth_unstable_by(mid, f32::total_cmp).1.max(1e-3)
+        }
+    };
+    let point_distances = POINT_DISTANCES.map(|f| f * spread);
+    type Best = Option<(f64, Vec3, Option<f32>)>;
+    let consider = |best: &mut Best, d: Vec3, distance: Option<f32>| {
+        if !in_the_open(d, distance) {
+            return;
+        }
+        let (score, _, _) = score(&[d], distance);
+        if best.is_none_or(|(b, _, _)| score < b) {
+            *best = Some((score, d, distance));
+        }
+    };
+    // The best direction: a coarse search over the sphere above the horizon, then one four times
+    // as dense within about two coarse spacings of the best.
+    let mut best_direction: Best = None;
+    for d in fibonacci(options.directions, up, -0.05) {
+        consider(&mut best_direction, d, None);
+    }
+    if let Some((_, coarse, _)) = best_direction {
+        let spacing = (4.0 / options.directions as f32).sqrt();
+        for d in fibonacci(options.directions * 4, up, -0.05) {
+            if d.dot(coarse) > (2.0 * spacing).cos() {
+                consider(&mut best_direction, d, None);
             }
         }
     }
-    let Some((_, direction)) = best else {
+    // The best position: searched more coarsely (each distance would cost as much as the whole
+    // directional search otherwise), then refined by a pattern search, since a position has
+    // three coordinates to refine: steps along both tangents and the distance, halved whenever
+    // none improves, get there in far fewer scores than a dense grid.
+    let point_directions = options.directions / POINT_DIRECTION_DIVISOR;
+    let mut best_point: Best = None;
+    for d in fibonacci(point_directions, up, -0.05) {
+        for distance in &point_distances {
+            consider(&mut best_point, d, Some(*distance));
+        }
+    }
+    let mut step = (4.0 / point_directions as f32).sqrt();
+    let mut factor = 1.25f32;
+    for _ in 0..POINT_REFINE_MAX_ROUNDS {
+        if step <= POINT_REFINE_STOP_RAD {
+            break;
+        }
+        let Some((score, d, Some(r))) = best_point else {
+            break;
+        };
+        let (tx, ty) = tangents(d);
+        let (sin, cos) = step.sin_cos();
+        for (nd, nr) in [
+            (d * cos + tx * sin, r),
+            (d * cos - tx * sin, r),
+            (d * cos + ty * sin, r),
+            (d * cos - ty * sin, r),
+            (d, r * factor),
+            (d, r / factor),
+        ] {
+            if nd.dot(up) >= -0.05 {
+                consider(&mut best_point, nd.normalize(), Some(nr));
+            }
+        }
+        if best_point.is_some_and(|(b, _, _)| b >= score) {
+            step *= 0.5;
+            factor = factor.sqrt();
+        }
+    }
+    // A position has one parameter more than a direction, enough to fit a local gradient (a
+    // sunlit patch, a wall's falloff) with a weak nearby light: it must explain the photo better
+    // than the best direction by the margin a light must bring over none.
+    let best = match (best_direction, best_point) {
+        (Some(d), Some(p)) if p.0 < d.0 * (1.0 - options.min_improvement as f64) => Some(p),
+        (None, p) => p,
+        (d, _) => d,
+    };
+    let Some((_, direction, distance)) = best else {
         return Ok(fallback(samples.len()));
     };
-    // Angular size: a cone of directions for a few widths; the softest that does not explain
-    // the photo worse wins.
-    let (tx, ty) = {
-        let t = if direction.x.abs() < 0.9 {
-            Vec3::X
-        } else {
-            Vec3::Z
-        };
-        let x = t.cross(direction).normalize();
-        (x, direction.cross(x))
-    };
+    // Angular size (seen from the insertion point): a cone of directions for a few widths; the
+    // softest that does not explain the photo worse wins.
+    let (tx, ty) = tangents(direction);
     let mut best_size = (f64::MAX, 0.0f32, 0.0f64, Vec::new());
     for size_deg in [0.5f32, 4.0, 12.0, 25.0] {
         let r = (size_deg / 2.0).to_radians();
@@ -800,7 +913,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             cone.push((direction + (tx * a.cos() + ty * a.sin()) * rr.tan()).normalize());
         }
         let (score, disagreement, column) =
-            score_direction(if size_deg < 1.0 { &cone[..1] } else { &cone });
+            score(if size_deg < 1.0 { &cone[..1] } else { &cone }, distance);
         if score < best_size.0 - 1e-4 {
             best_size = (score, size_deg, disagreement, column);
         }
@@ -808,9 +921,9 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let (score, size_deg, disagreement, column) = best_size;
     let baseline_score = baseline.residual;
     // A light that leaves half of the shading unexplained is not an inference.
-    let keep_directional = score < baseline_score * (1.0 - options.min_improvement as f64)
+    let keep_fitted = score < baseline_score * (1.0 - options.min_improvement as f64)
         && score < MAX_EXPLAINED_RESIDUAL;
-    if !keep_directional && in_view.is_empty() {
+    if !keep_fitted && in_view.is_empty() {
         return Ok(fallback(samples.len()));
     }
 
@@ -818,7 +931,11 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     // held, each channel's intensities are a linear least-squares solve (grey-world: the albedos'
     // colour is taken as neutral), kept within a factor of two of grey, since the colour of a
     // poorly explained photo can wander off and a light's colour rarely lies outside that range.
-    let g = build(keep_directional.then_some(&column));
+    // The fitted out-of-view light stays neutral: it and the ambient term light the same few
+    // regions, so their colours trade off against each other and against the regions' colour,
+    // and a room with a brown floor hands the light the floor's colour (in the built-in `room`
+    // seen from above, red twice blue).
+    let g = build(keep_fitted.then_some(&column));
     let lum_fit = trimmed(&g, &luma, &regions, n_regions, options.albedo);
     let (_, rho) = projected(&g, &luma, &regions, n_regions, &lum_fit.x);
     let channel: Vec<Vec<f64>> = (0..3)
@@ -857,12 +974,16 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             ..*l
         });
     }
-    if keep_directional {
-        let mut l = Light::directional(
-            (-direction).to_array(),
-            size_deg,
-            value(in_view.len()).map(|v| v * pi),
-        );
+    if keep_fitted {
+        let intensity = [lum_fit.x[in_view.len()].max(0.0) as f32 * pi; 3];
+        let mut l = match distance {
+            None => Light::directional((-direction).to_array(), size_deg, intensity),
+            Some(r) => Light::point(
+                (centre + direction * r).to_array(),
+                2.0 * r * (size_deg / 2.0).to_radians().tan(),
+                intensity,
+            ),
+        };
         l.confidence = (1.0 - score / baseline_score.max(1e-9)).clamp(0.05, 1.0) as f32;
         lights.push(l);
     }
@@ -884,7 +1005,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             e(a).total_cmp(&e(b))
         })
         .unwrap_or_else(|| fallback(0).main);
-    let residual = if keep_directional {
+    let residual = if keep_fitted {
         alternate(&g, &luma, &regions, n_regions, options.albedo).residual
     } else {
         baseline.residual
@@ -895,7 +1016,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         lights,
         fallback_used: false,
         residual: residual as f32,
-        shadow_disagreement: if keep_directional {
+        shadow_disagreement: if keep_fitted {
             disagreement as f32
         } else {
             0.0
@@ -1068,17 +1189,29 @@ mod tests {
         // A wide cone whose directions' cosines average 0.8 on a sample that sees all of it: no
         // predicted shadow, whatever the cosine of the cone's centre (1 here).
         let samples = [sample(0.0), sample(1.0), sample(0.0)];
-        let lit = [0.8, 0.0, 0.4];
-        let open = [0.8, 0.8, 0.8];
+        // (lit, unoccluded, facing cosine) per sample.
+        let lit_open = [(0.8, 0.8, 1.0), (0.0, 0.8, 1.0), (0.4, 0.8, 1.0)];
         // Agreement on the first two; the third is half hidden against an unshadowed mask.
-        let d = shadow_disagreement(&samples, &lit, &open, Vec3::Y);
+        let d = shadow_disagreement(&samples, &lit_open, |_| Vec3::Y);
         assert!((d - 0.5 / 3.0).abs() < 1e-6, "{d}");
         // Samples facing away from the light do not count.
-        let d = shadow_disagreement(&samples, &lit, &open, -Vec3::Y);
+        let d = shadow_disagreement(&samples, &lit_open, |_| -Vec3::Y);
         assert_eq!(d, 0.0);
     }
 
+    /// What lights [`room_lit`]: a sun towards a direction, or a bulb at a position.
+    #[derive(Clone, Copy)]
+    enum Lit {
+        Sun(Vec3),
+        Bulb(Vec3),
+    }
+
     fn room(to_light: Vec3, ambient: f32, irradiance: f32) -> Room {
+        room_lit(Lit::Sun(to_light), ambient, irradiance)
+    }
+
+    /// The room of [`Room`] lit by `lit` of `strength` (a sun's irradiance, a bulb's intensity).
+    fn room_lit(lit: Lit, ambient: f32, strength: f32) -> Room {
         let (w, h) = (160, 120);
         let camera = Camera::from_focal(120.0, w, h).unwrap();
         let (lo, hi) = (Vec3::new(-0.5, -1.0, -4.3), Vec3::new(0.3, -0.2, -3.5));
@@ -1107,7 +1240,6 @@ mod tests {
             }
             best
         };
-        let l = to_light.normalize();
         let mut photo = Raster::filled(w as usize, h as usize, [0.0f32; 3]);
         let mut depth = Raster::filled(w as usize, h as usize, f32::NAN);
         let mut normals = Raster::filled(w as usize, h as usize, [0.0f32; 3]);
@@ -1120,9 +1252,16 @@ mod tests {
                 };
                 let p = d * t;
                 let texture = 0.85 + 0.15 * ((p.x * 7.0).sin() * (p.z * 5.0).cos()).abs();
-                let lit = trace(p + n * 1e-3, l).is_none();
+                let (l, dist, falloff) = match lit {
+                    Lit::Sun(to_light) => (to_light.normalize(), f32::INFINITY, 1.0),
+                    Lit::Bulb(at) => {
+                        let r = at.distance(p);
+                        ((at - p) / r, r, 1.0 / (r * r))
+                    }
+                };
+                let lit = trace(p + n * 1e-3, l).is_none_or(|(t, _, _)| t >= dist);
                 let e = if lit {
-                    irradiance * n.dot(l).max(0.0)
+                    strength * falloff * n.dot(l).max(0.0)
                 } else {
                     0.0
                 };
@@ -1159,18 +1298,23 @@ mod tests {
         }
     }
 
+    /// The default fit of `r` with its true shadows as the mask and no in-view lights.
+    fn fit_with_mask(r: &Room) -> LightFit {
+        let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
+        fit_lights(
+            &inputs(r, &regions, Some(&r.shadow)),
+            &[],
+            &Default::default(),
+        )
+        .unwrap()
+    }
+
     #[test]
     fn finds_the_direction_of_an_out_of_view_sun() {
         for to_light in [Vec3::new(0.6, 1.0, 0.4), Vec3::new(0.25, 1.0, 0.8)] {
-            let r = room(to_light, 0.15, 2.0);
-            let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
-            let fit = fit_lights(
-                &inputs(&r, &regions, Some(&r.shadow)),
-                &[],
-                &Default::default(),
-            )
-            .unwrap();
+            let fit = fit_with_mask(&room(to_light, 0.15, 2.0));
             assert!(!fit.fallback_used);
+            assert_eq!(fit.main.kind, LightKind::Directional, "{fit:?}");
             let found = -Vec3::from(fit.main.direction);
             let error = found.angle_between(to_light.normalize()).to_degrees();
             // The target for a light out of view is 20°; behind the camera, shadows fall
@@ -1181,6 +1325,23 @@ mod tests {
             assert!(luminance(fit.main.intensity) > 0.0 && luminance(fit.ambient) > 0.0);
             assert!(fit.residual < 0.1, "{}", fit.residual);
         }
+    }
+
+    #[test]
+    fn finds_the_position_of_an_out_of_view_bulb() {
+        // Above the frame (30° up, the frame reaches 26.6°), 2.4 m above the floor: the floor
+        // and the back wall fall off across their extent, which no sun explains.
+        let at = Vec3::new(0.4, 1.4, -2.4);
+        let fit = fit_with_mask(&room_lit(Lit::Bulb(at), 0.15, 12.0));
+        assert!(!fit.fallback_used);
+        assert_eq!(fit.main.kind, LightKind::Point, "{fit:?}");
+        let error = Vec3::from(fit.main.position).distance(at);
+        assert!(
+            error < 0.1 * at.length(),
+            "found {:?}, {error} m off",
+            fit.main
+        );
+        fit.main.validate().unwrap();
     }
 
     #[test]

@@ -69,6 +69,19 @@ impl Light {
         }
     }
 
+    /// A point light (a sphere of diameter `diameter` metres, 0 for a point) at `position`
+    /// (metres) of radiant intensity `intensity`.
+    pub fn point(position: [f32; 3], diameter: f32, intensity: [f32; 3]) -> Light {
+        Light {
+            kind: LightKind::Point,
+            position,
+            direction: [0.0, -1.0, 0.0],
+            size: diameter,
+            intensity,
+            confidence: 1.0,
+        }
+    }
+
     /// Checks that every value is finite and in range.
     ///
     /// # Errors

@@ -256,6 +256,23 @@ impl Scene {
         Ok(Some(self.lighting_estimate()?.fit.main))
     }
 
+    /// Where the main light is seen from, camera frame, metres: the host's insertion point when
+    /// it set one, else the estimate's (see [`Scene::set_insertion_point`]) when the lights are
+    /// estimated, else 2 m in front of the camera (host lights without a point). The direction to
+    /// a point or area light depends on it.
+    ///
+    /// # Errors
+    /// As [`Scene::lighting_estimate`] when the lights are estimated.
+    pub fn main_light_origin(&mut self) -> Result<[f32; 3]> {
+        if let Some(point) = self.lighting.insertion_point.value {
+            return Ok(point);
+        }
+        if self.lighting.host_lights.value.is_some() {
+            return Ok([0.0, 0.0, -2.0]);
+        }
+        Ok(self.lighting_estimate()?.insertion_point)
+    }
+
     /// The environment around the insertion point: built from the host's map when given, else
     /// the estimate's.
     ///
@@ -331,6 +348,8 @@ mod tests {
         assert_eq!(status(&s, "lighting"), Some(StageStatus::Computed));
         let main = s.main_light().unwrap().unwrap();
         main.validate().unwrap();
+        // Estimated lights are seen from the estimate's insertion point.
+        assert_eq!(s.main_light_origin().unwrap(), estimate.insertion_point);
         assert!(s.sh9().unwrap().to_array().iter().all(|v| v.is_finite()));
         assert!(estimate
             .shadow_mask
@@ -355,6 +374,12 @@ mod tests {
         assert_eq!(s.lights().unwrap(), vec![lamp]);
         assert_eq!(status(&s, "lighting"), Some(StageStatus::Skipped));
         assert_eq!(s.main_light().unwrap(), Some(lamp));
+        // A host's lights without a host point: seen from 2 m in front of the camera; with one,
+        // from it.
+        assert_eq!(s.main_light_origin().unwrap(), [0.0, 0.0, -2.0]);
+        s.set_insertion_point([0.5, 0.0, -3.0]).unwrap();
+        assert_eq!(s.main_light_origin().unwrap(), [0.5, 0.0, -3.0]);
+        s.clear_insertion_point();
         s.set_lights(Vec::new()).unwrap();
         assert_eq!(s.main_light().unwrap(), None);
         let bad = Light {

@@ -637,7 +637,7 @@ pub fn run(args: LightsArgs) -> Result<()> {
         "\nDefinitions: *main dir. error* — angle at the insertion point (2 cm above the table, in front of its centre) \
          between the direction to the estimated main light and to the true light giving the most irradiance there; \
          *in-view position error* — distance from each true light inside the frame to the nearest estimated positional \
-         light, as % of the true light's distance from the camera; *found* — positional (in-view) lights kept by the fit; \
+         light, as % of the true light's distance from the camera; *found* — positional lights kept by the fit (in-view sources and a fitted out-of-view point light); \
          *shadow IoU* — against the pixels where the true visibility averaged over the lights is below 0.5 \
          (surfaces facing away count as shadow), mask > 0.5; *SH irradiance rel. RMS* — over 2000 directions, RGB, the estimate's SH9 \
          against the SH9 of a path-traced radiance probe at the insertion point (24² per face, 64 paths per texel); \
