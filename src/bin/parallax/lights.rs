@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use parallax::image::{Image, Raster};
-use parallax::light::{prefilter::sample_cube, Environment, EnvironmentOptions, Light};
+use parallax::light::{prefilter::sample_cube, Environment, EnvironmentOptions, Light, LightKind};
 use parallax::mesh::UpSource;
 use parallax::trace::Trace;
 use parallax::{Error, Result};
@@ -232,13 +232,26 @@ pub fn run(args: Args) -> Result<()> {
     }
     if !args.common.quiet {
         let m = &estimate.fit.main;
+        // A directional light's `direction` is where its light travels; a point or area light is
+        // better told by where it is. Both by the direction towards it from where objects go.
+        let place = match m.kind {
+            LightKind::Directional => String::new(),
+            _ => format!(
+                " at ({:.2}, {:.2}, {:.2}) m",
+                m.position[0], m.position[1], m.position[2]
+            ),
+        };
+        let size = match m.kind {
+            LightKind::Directional => format!("{:.1}°", m.size),
+            _ => format!("{:.2} m", m.size),
+        };
+        let (towards, _) = m.towards(Vec3::from(estimate.insertion_point));
         eprintln!(
-            "main light: {:?}, direction ({:.2}, {:.2}, {:.2}), size {:.2}, intensity ({:.3}, {:.3}, {:.3}){}",
+            "main light: {:?}{place}, towards it from the insertion point ({:.2}, {:.2}, {:.2}), size {size}, intensity ({:.3}, {:.3}, {:.3}){}",
             m.kind,
-            m.direction[0],
-            m.direction[1],
-            m.direction[2],
-            m.size,
+            towards.x,
+            towards.y,
+            towards.z,
             m.intensity[0],
             m.intensity[1],
             m.intensity[2],
