@@ -242,9 +242,9 @@ pub unsafe extern "C" fn plx_scene_lights(
 
 /// The main light, as AR platforms give it: `direction[3]` the unit vector from the scene towards
 /// the light (for a point or area light, towards its centre from the insertion point: the host's
-/// (`plx_scene_set_insertion_point`), else the estimate's, else, for host lights without one,
-/// 2 m in front of the camera), `rgb[3]` its intensity (see `plx_light`). With an empty host light
-/// list both are zero. Errors as `plx_scene_lights`.
+/// (`plx_scene_set_insertion_point`) when set; else, for estimated lights, the estimate's, and for
+/// host lights, 2 m in front of the camera), `rgb[3]` its intensity (see `plx_light`). With an
+/// empty host light list both are zero. Errors as `plx_scene_lights`.
 ///
 /// # Safety
 /// `scene` is a live scene; `direction` and `rgb` point to 3 writable floats each.

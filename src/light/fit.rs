@@ -17,12 +17,15 @@
 //! over the sphere above the horizon (Fibonacci points) for a directional light, and, more
 //! coarsely (a quarter as many directions), points at 0.5, 1 and 2 times the median distance from
 //! the insertion point to the samples for a point light (a room's lamp hangs about as far away as
-//! its walls), each only when the insertion point sees it (not behind a surface of the photo). Each
+//! its walls), each position only when the insertion point sees it (not behind a surface of the
+//! photo) and the camera does not (in the frame, in front of what the photo shows there, it would
+//! be in the photo, where no source was detected). Each
 //! candidate is scored by the relative RMS residual plus the disagreement between the predicted
 //! cast shadow (the part of the light hidden from a sample) and the shadow mask. The best of each
 //! kind is then refined: a direction over a set four times as dense around it; a position by a
 //! pattern search over its three coordinates (a step along either tangent of its direction and its
-//! distance scaled by a factor, both halved when no step improves, down to 0.5°): a nearby lamp
+//! distance scaled by a factor, the step halved and the factor square-rooted when no step
+//! improves, down to 0.5°, the distance kept within a factor of two of the candidates'): a nearby lamp
 //! shows itself in how its light falls off and turns across the floor, which no single direction
 //! explains, and three coordinates on a grid would cost too many scores. The point light replaces
 //! the best direction only when it scores lower by the margin a light must bring over none
@@ -79,7 +82,8 @@ pub struct FitInputs<'a> {
 pub struct FitOptions {
     /// At most this many sample pixels (≥ 100).
     pub max_samples: usize,
-    /// Candidate directions in the coarse search (≥ 16).
+    /// Candidate directions in the coarse search (≥ 16); a quarter as many carry the point-light
+    /// candidates, and their spacing is the first step of the point light's refinement.
     pub directions: usize,
     /// The assumed median albedo of the regions, in (0, 1].
     pub albedo: f32,
@@ -90,7 +94,8 @@ pub struct FitOptions {
     /// in [0, 1).
     pub min_improvement: f32,
     /// Where the main light is judged from (camera frame, metres): the light giving the most
-    /// irradiance there is the main one. `None`: the median sample point.
+    /// irradiance there is the main one. Point-light candidates are placed around it and the
+    /// fitted light's angular size is seen from it. `None`: the median sample point.
     pub insertion_point: Option<[f32; 3]>,
 }
 
@@ -756,9 +761,10 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         None => Light::directional((-d).to_array(), 0.0, [1.0; 3]),
         Some(r) => Light::point((centre + d * r).to_array(), 0.0, [1.0; 3]),
     };
-    let score = |cone: &[Vec3], distance: Option<f32>| -> (f64, f64, Vec<f32>) {
+    let score_candidate = |cone: &[Vec3], distance: Option<f32>| -> (f64, f64, Vec<f32>) {
         // Per sample: the cone's light with cast shadows, without, and the facing cosine towards
-        // the cone's centre when unoccluded.
+        // the cone's axis when unoccluded (the support test needs the cosine alone: the light
+        // term of a point light also falls off with 1/r²).
         let per_sample: Vec<(f32, f32, f32)> = samples
             .par_iter()
             .map(|s| {
@@ -797,8 +803,8 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         // the samples facing the light, as a fraction of all samples (ambient alone, facing
         // nothing, disagrees nowhere).
         let disagreement = if has_mask {
-            let centre_light = candidate_light(cone[0], distance);
-            shadow_disagreement(&samples, &per_sample, |s| centre_light.towards(s.p).0)
+            let axis_light = candidate_light(cone[0], distance);
+            shadow_disagreement(&samples, &per_sample, |s| axis_light.towards(s.p).0)
         } else {
             0.0
         };
@@ -808,30 +814,42 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             column,
         )
     };
-    // A light at a position must be in the open as seen from the insertion point: not behind a
-    // surface of the photo.
+    // A light at a position must be in the open as seen from the insertion point (not behind a
+    // surface of the photo), and out of the camera's sight: inside the frame and in front of what
+    // the photo shows there, it would be in the photo, where the detector found no source.
     let in_the_open = |d: Vec3, distance: Option<f32>| {
-        distance.is_none_or(|r| visible(&occluders, centre, d, d, r, None))
+        distance.is_none_or(|r| {
+            let position = centre + d * r;
+            // Unknown depth there (NaN, infinite) counts as nothing in front of the lamp.
+            let seen_by_camera = inputs.camera.project(position).is_some_and(|(uv, z)| {
+                let (x, y) = (uv.x.floor(), uv.y.floor());
+                let in_frame = x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
+                in_frame && {
+                    let surface = *inputs.depth.get(x as usize, y as usize);
+                    surface.is_nan() || surface >= z
+                }
+            });
+            !seen_by_camera && visible(&occluders, centre, d, d, r, None)
+        })
     };
     // Distances of the positional candidates, in units of the median distance from the
     // insertion point to the photo's surfaces (a room's lamps hang about as far away as its
     // walls).
     let spread = {
         let mut r: Vec<f32> = samples.iter().map(|s| s.p.distance(centre)).collect();
-        if r.is_empty() {
-            1.0
-        } else {
-            let mid = r.len() / 2;
-            r.select_nth_unstable_by(mid, f32::total_cmp).1.max(1e-3)
-        }
+        let mid = r.len() / 2;
+        r.select_nth_unstable_by(mid, f32::total_cmp).1.max(1e-3)
     };
     let point_distances = POINT_DISTANCES.map(|f| f * spread);
+    // The refinement stays within a factor of two of the candidates' distances: nearer, the lamp
+    // closes in on the insertion point; farther, it is a direction.
+    let (min_distance, max_distance) = (point_distances[0] / 2.0, point_distances[2] * 2.0);
     type Best = Option<(f64, Vec3, Option<f32>)>;
     let consider = |best: &mut Best, d: Vec3, distance: Option<f32>| {
         if !in_the_open(d, distance) {
             return;
         }
-        let (score, _, _) = score(&[d], distance);
+        let (score, _, _) = score_candidate(&[d], distance);
         if best.is_none_or(|(b, _, _)| score < b) {
             *best = Some((score, d, distance));
         }
@@ -867,7 +885,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         if step <= POINT_REFINE_STOP_RAD {
             break;
         }
-        let Some((score, d, Some(r))) = best_point else {
+        let Some((score, d, Some(r))) = best_point.filter(|b| b.0.is_finite()) else {
             break;
         };
         let (tx, ty) = tangents(d);
@@ -877,8 +895,8 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             (d * cos - tx * sin, r),
             (d * cos + ty * sin, r),
             (d * cos - ty * sin, r),
-            (d, r * factor),
-            (d, r / factor),
+            (d, (r * factor).min(max_distance)),
+            (d, (r / factor).max(min_distance)),
         ] {
             if nd.dot(up) >= -0.05 {
                 consider(&mut best_point, nd.normalize(), Some(nr));
@@ -913,7 +931,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             cone.push((direction + (tx * a.cos() + ty * a.sin()) * rr.tan()).normalize());
         }
         let (score, disagreement, column) =
-            score(if size_deg < 1.0 { &cone[..1] } else { &cone }, distance);
+            score_candidate(if size_deg < 1.0 { &cone[..1] } else { &cone }, distance);
         if score < best_size.0 - 1e-4 {
             best_size = (score, size_deg, disagreement, column);
         }
@@ -950,6 +968,21 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
                     }
                     a[i][m] += gi * s.rgb[k] as f64;
                 }
+            }
+            // The fitted light is held at its luminance in every channel (neutral), so the
+            // other lights' and the ambient term's colours are solved under the light that is
+            // handed out, not under a tinted one that is then discarded.
+            if keep_fitted {
+                let (f, x) = (in_view.len(), lum_fit.x[in_view.len()].max(0.0));
+                for (i, row) in a.iter_mut().enumerate() {
+                    if i != f {
+                        row[m] -= row[f] * x;
+                        row[f] = 0.0;
+                    }
+                }
+                a[f] = vec![0.0; m + 1];
+                a[f][f] = 1.0;
+                a[f][m] = x;
             }
             solve(a)
         })
@@ -1342,6 +1375,9 @@ mod tests {
             fit.main
         );
         fit.main.validate().unwrap();
+        // The room's photo is tinted; the fitted light is neutral all the same.
+        let [r, g, b] = fit.main.intensity;
+        assert!(r == g && g == b, "{:?}", fit.main.intensity);
     }
 
     #[test]
