@@ -423,6 +423,21 @@ impl Camera {
         uv.is_finite().then_some((uv, depth))
     }
 
+    /// The pixel (column, row) a 3D point projects into and its depth (metres); `None` when the
+    /// point is not in front of the camera, not finite, or projects outside the image.
+    pub fn project_to_pixel(&self, p: Vec3) -> Option<(usize, usize, f32)> {
+        let (uv, depth) = self.project(p)?;
+        let (w, h) = (self.width as f32, self.height as f32);
+        (uv.x >= 0.0 && uv.y >= 0.0 && uv.x < w && uv.y < h).then(|| {
+            // `uv.x < w` can still round to `w` as an index for `uv.x` just below it.
+            (
+                (uv.x as usize).min(self.width as usize - 1),
+                (uv.y as usize).min(self.height as usize - 1),
+                depth,
+            )
+        })
+    }
+
     /// The view matrix (world → camera). World is the left camera at capture (DESIGN.md), so this
     /// is the identity; it exists so hosts and the renderer compose `projection · view · model`
     /// the same way whether or not a pose is given later.
@@ -658,6 +673,23 @@ mod camera_model_tests {
         assert!(c.project(Vec3::new(0.0, 0.0, 1.0)).is_none());
         let d = c.ray_direction(380.0, 221.0);
         assert!((d - p.normalize()).length() < 1e-6);
+    }
+
+    #[test]
+    fn project_to_pixel_names_the_pixel_containing_the_point() {
+        let c = off_centre();
+        // Image position (380.3, 221.7): column 380, row 221.
+        let p = c.unproject(380.3, 221.7, 2.0).unwrap();
+        let (x, y, z) = c.project_to_pixel(p).unwrap();
+        assert_eq!((x, y), (380, 221));
+        assert!((z - 2.0).abs() < 1e-5);
+        // Left of column 0, below the last row, behind the camera: no pixel.
+        assert!(c
+            .project_to_pixel(c.unproject(-0.5, 10.0, 2.0).unwrap())
+            .is_none());
+        let below = c.unproject(10.0, c.height as f32 + 0.5, 2.0).unwrap();
+        assert!(c.project_to_pixel(below).is_none());
+        assert!(c.project_to_pixel(Vec3::new(0.0, 0.0, 1.0)).is_none());
     }
 
     #[test]

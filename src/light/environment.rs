@@ -526,18 +526,13 @@ fn march(
     dir: Vec3,
     reach: f32,
 ) -> Option<(usize, usize)> {
-    let (w, h) = (camera.width as usize, camera.height as usize);
     let surface = |px: usize, py: usize| {
         depth
             .map(|d| *d.get(px, py))
             .filter(|z| z.is_finite() && *z > 0.0)
             .unwrap_or(f32::INFINITY)
     };
-    let pixel_of = |q: Vec3| -> Option<(usize, usize)> {
-        let (uv, _) = camera.project(q)?;
-        (uv.x >= 0.0 && uv.y >= 0.0 && uv.x < w as f32 && uv.y < h as f32)
-            .then(|| ((uv.x as usize).min(w - 1), (uv.y as usize).min(h - 1)))
-    };
+    let pixel_of = |q: Vec3| camera.project_to_pixel(q).map(|(x, y, _)| (x, y));
     let t0 = 1e-3f32;
     let ratio = (reach / t0)
         .max(1.0 + 1e-6)

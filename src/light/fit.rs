@@ -821,14 +821,14 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         distance.is_none_or(|r| {
             let position = centre + d * r;
             // Unknown depth there (NaN, infinite) counts as nothing in front of the lamp.
-            let seen_by_camera = inputs.camera.project(position).is_some_and(|(uv, z)| {
-                let (x, y) = (uv.x.floor(), uv.y.floor());
-                let in_frame = x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
-                in_frame && {
-                    let surface = *inputs.depth.get(x as usize, y as usize);
-                    surface.is_nan() || surface >= z
-                }
-            });
+            let seen_by_camera =
+                inputs
+                    .camera
+                    .project_to_pixel(position)
+                    .is_some_and(|(x, y, z)| {
+                        let surface = *inputs.depth.get(x, y);
+                        surface.is_nan() || surface >= z
+                    });
             !seen_by_camera && visible(&occluders, centre, d, d, r, None)
         })
     };
@@ -870,8 +870,8 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     }
     // The best position: searched more coarsely (each distance would cost as much as the whole
     // directional search otherwise), then refined by a pattern search, since a position has
-    // three coordinates to refine: steps along both tangents and the distance, halved whenever
-    // none improves, get there in far fewer scores than a dense grid.
+    // three coordinates to refine: steps along both tangents and the distance, made finer
+    // whenever none improves, get there in far fewer scores than a dense grid.
     let point_directions = options.directions / POINT_DIRECTION_DIVISOR;
     let mut best_point: Best = None;
     for d in fibonacci(point_directions, up, -0.05) {
@@ -912,7 +912,6 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     // than the best direction by the margin a light must bring over none.
     let best = match (best_direction, best_point) {
         (Some(d), Some(p)) if p.0 < d.0 * (1.0 - options.min_improvement as f64) => Some(p),
-        (None, p) => p,
         (d, _) => d,
     };
     let Some((_, direction, distance)) = best else {

@@ -94,9 +94,7 @@ fn true_light_at(l: &LightRecord, p: Vec3) -> (f32, Vec3) {
 }
 
 fn in_view(camera: &Camera, p: Vec3) -> bool {
-    camera.project(p).is_some_and(|(uv, _)| {
-        uv.x >= 0.0 && uv.y >= 0.0 && uv.x < camera.width as f32 && uv.y < camera.height as f32
-    })
+    camera.project_to_pixel(p).is_some()
 }
 
 fn iou(mask: &Raster<f32>, truth: &[bool], valid: &[bool]) -> f32 {
