@@ -47,7 +47,7 @@ pub fn census_transform(image: &Raster<u8>, rx: usize, ry: usize) -> Vec<u64> {
         width: pw,
         height: h,
     };
-    let mut out = vec![0u64; w * h];
+    let mut out = super::buffer::zeroed::<u64>(w * h);
     out.par_chunks_mut(w).enumerate().for_each_init(
         || vec![0u8; w],
         |byte, (y, bits)| census_row_transform(&padded, &window, y, byte, bits),

@@ -23,6 +23,7 @@
 //! rows. Hot loops are compiled twice and chosen at run time for AVX2 ([`simd`]).
 
 pub mod alignment;
+pub mod buffer;
 pub mod census;
 pub mod cost;
 pub mod dp;

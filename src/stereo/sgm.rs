@@ -11,10 +11,17 @@
 //! volume when stored (1 byte per pixel and disparity), and per sweep two rows of path costs.
 //!
 //! Each pixel may search its own window of `k` disparities `base(p)..base(p)+k` (coarse-to-fine);
-//! a path step then aligns the neighbour's window to the pixel's before the recurrence.
+//! a path step reads the neighbour's costs at the pixel's disparities: in place, since each
+//! pixel's path costs are stored between runs of `FAR`, when the windows start fewer than 16
+//! disparities apart; copied into the pixel's indices when they are further apart.
+//!
+//! Within a row, the path along the row runs pixel after pixel; the vertical and diagonal paths,
+//! which only read the row before, each run over the whole row on their own (short loops that
+//! keep their state in registers).
 
 use std::sync::Mutex;
 
+use super::buffer;
 use super::cost::CostRows;
 use crate::image::Raster;
 
@@ -83,10 +90,10 @@ pub fn aggregate(
     store_costs: bool,
 ) -> Aggregated {
     let (w, h) = (cost.width(), cost.height());
-    let mut s = vec![0u16; w * h * k];
-    let mut min_sum = vec![0u16; w * h];
+    let mut s = buffer::zeroed::<u16>(w * h * k);
+    let mut min_sum = buffer::zeroed::<u16>(w * h);
     let mut volume = if store_costs {
-        vec![0u8; w * h * k]
+        buffer::zeroed::<u8>(w * h * k)
     } else {
         Vec::new()
     };
@@ -132,7 +139,7 @@ pub fn aggregate(
 /// Bytes [`aggregate`] allocates for an image of `w × h` with `k` disparities (both sweeps).
 pub fn working_bytes(w: usize, h: usize, k: usize, store_costs: bool) -> usize {
     let volume = w * h * k * (2 + store_costs as usize) + w * h * 2;
-    let per_sweep = w * k + 2 * 3 * w * (k + 2) * 2 + 2 * (k + 2) * 2 + 3 * 2 * w * 2;
+    let per_sweep = w * k + 2 * 3 * w * (k + 2 * PAD) * 2 + 3 * (k + 2 * PAD) * 2 + 3 * 2 * w * 2;
     volume + 2 * per_sweep
 }
 
@@ -174,20 +181,45 @@ struct Sweep<'a> {
     forward: bool,
 }
 
-/// One path direction's costs for a whole row, `k + 2` values a pixel with `FAR` at both ends.
+/// `FAR` values kept on each side of a pixel's path costs in a [`PathRow`]: a neighbour whose
+/// window starts up to `PAD − 1` disparities away from the pixel's is read in place, as one slice,
+/// instead of being copied into the pixel's window first.
+const PAD: usize = LANES;
+
+/// One path direction's costs for a whole row: per pixel `PAD` × `FAR`, its `k` path costs, then
+/// `PAD` × `FAR` again (see [`PathRow::view`]); and each pixel's smallest path cost.
 struct PathRow {
     l: Vec<u16>,
     min: Vec<u16>,
+    k: usize,
 }
 
 impl PathRow {
     fn new(w: usize, k: usize) -> Self {
-        let mut l = vec![0u16; w * (k + 2)];
-        for px in l.chunks_exact_mut(k + 2) {
-            px[0] = FAR;
-            px[k + 1] = FAR;
+        PathRow {
+            l: vec![FAR; w * (k + 2 * PAD)],
+            min: vec![0; w],
+            k,
         }
-        PathRow { l, min: vec![0; w] }
+    }
+
+    /// The `k` path costs of pixel `x`, to be written.
+    #[inline(always)]
+    fn window_mut(&mut self, x: usize) -> &mut [u16] {
+        let stride = self.k + 2 * PAD;
+        &mut self.l[x * stride + PAD..x * stride + PAD + self.k]
+    }
+
+    /// Pixel `x`'s path costs seen from a pixel whose window starts `shift` disparities higher:
+    /// `k + 2` values, entry `j` the cost at the other pixel's disparity index `j − 1` (`FAR`
+    /// outside pixel `x`'s window), or `None` when the windows are `PAD` or more apart.
+    #[inline(always)]
+    fn view(&self, x: usize, shift: isize) -> Option<&[u16]> {
+        if shift.unsigned_abs() >= PAD {
+            return None;
+        }
+        let from = (x * (self.k + 2 * PAD) + PAD - 1).wrapping_add_signed(shift);
+        self.l.get(from..from + self.k + 2)
     }
 }
 
@@ -195,21 +227,21 @@ impl Sweep<'_> {
     #[inline(always)]
     fn run(&self, rows: &RowLocks<'_>) {
         let (w, h, k) = (self.cost.width(), self.cost.height(), self.k);
-        let kp = k + 2;
         let mut scratch = Vec::new();
         // Index 0: along the row; 1: vertical; 2, 3: the two diagonals. prev = row before.
         let ndir = if self.diagonals { 3 } else { 1 };
         let mut prev: Vec<PathRow> = (0..ndir).map(|_| PathRow::new(w, k)).collect();
         let mut cur: Vec<PathRow> = (0..ndir).map(|_| PathRow::new(w, k)).collect();
-        // The row path: previous pixel and current pixel.
-        let mut hprev = vec![FAR; kp];
-        let mut hcur = vec![FAR; kp];
+        // The row path: the previous pixel's and the current pixel's costs.
+        let mut hprev = PathRow::new(1, k);
+        let mut hcur = PathRow::new(1, k);
         let mut hmin = 0u16;
         // A path that enters the image here starts from zeros (then L = C).
-        let mut start = vec![0u16; kp];
-        start[0] = FAR;
-        start[k + 1] = FAR;
-        let mut aligned = vec![FAR; kp];
+        let mut start = PathRow::new(1, k);
+        start.window_mut(0).fill(0);
+        let start = start.view(0, 0).unwrap_or(&[]);
+        // A neighbour's costs re-indexed to the pixel's window, when the two are far apart.
+        let mut aligned = vec![FAR; k + 2];
         let p1 = self.pen.p1;
         let step_x: isize = if self.forward { 1 } else { -1 };
 
@@ -254,64 +286,64 @@ impl Sweep<'_> {
                 }
                 None => &scratch,
             };
+            // Along the row: each pixel continues from the one before it.
             for xi in 0..w {
                 let x = if self.forward { xi } else { w - 1 - xi };
                 let c = &costs[x * k..(x + 1) * k];
                 let sum = &mut s_row[x * k..(x + 1) * k];
-                let base = row_bases.map_or(0, |b| b[x]);
-                let mut min_total: u32 = 0;
-
-                // Along the row.
-                {
-                    let p2 = if xi == 0 {
-                        self.pen.p2_table[0]
-                    } else {
-                        let xq = (x as isize - step_x) as usize;
-                        self.pen.p2_table[g[x].abs_diff(g[xq]) as usize]
-                    };
-                    let (src, minprev) = if xi == 0 {
-                        (&start[..], 0)
-                    } else {
-                        let xq = (x as isize - step_x) as usize;
-                        let shift = base as isize - row_bases.map_or(0, |b| b[xq]) as isize;
-                        (align(&hprev, shift, &mut aligned), hmin)
-                    };
-                    // The first sweep here writes the row's sums, the second adds to them.
-                    let m = if first {
-                        step::<true>(c, src, minprev, p1, p2, &mut hcur, sum)
-                    } else {
-                        step::<false>(c, src, minprev, p1, p2, &mut hcur, sum)
-                    };
-                    min_total += m as u32;
-                    hmin = m;
-                    std::mem::swap(&mut hprev, &mut hcur);
-                }
-
-                // From the previous row: vertical, then the diagonals (x − step, x + step).
-                let offsets: &[isize] = if self.diagonals { &[0, -1, 1] } else { &[0] };
-                for (dir, &off) in offsets.iter().enumerate() {
-                    let xq = x as isize + off * step_x;
-                    let out = &mut cur[dir].l[x * kp..(x + 1) * kp];
-                    let m = match (prev_y, gp) {
-                        (Some(_), Some(gp)) if xq >= 0 && (xq as usize) < w => {
-                            let xq = xq as usize;
-                            let p2 = self.pen.p2_table[g[x].abs_diff(gp[xq]) as usize];
-                            let shift = base as isize - prev_bases.map_or(0, |b| b[xq]) as isize;
-                            let src =
-                                align(&prev[dir].l[xq * kp..(xq + 1) * kp], shift, &mut aligned);
-                            step::<false>(c, src, prev[dir].min[xq], p1, p2, out, sum)
-                        }
-                        _ => step::<false>(c, &start, 0, p1, self.pen.p2_table[0], out, sum),
-                    };
-                    cur[dir].min[x] = m;
-                    min_total += m as u32;
-                }
-                let m = min_total.min(u16::MAX as u32) as u16;
+                let (src, minprev, p2) = if xi == 0 {
+                    (start, 0, self.pen.p2_table[0])
+                } else {
+                    let xq = (x as isize - step_x) as usize;
+                    let shift = row_bases.map_or(0, |b| b[x] as isize - b[xq] as isize);
+                    let p2 = self.pen.p2_table[g[x].abs_diff(g[xq]) as usize];
+                    (view_or_align(&hprev, 0, shift, &mut aligned), hmin, p2)
+                };
+                let out = hcur.window_mut(0);
+                // The first sweep here writes the row's sums, the second adds to them.
+                let m = if first {
+                    step::<true>(c, src, minprev, p1, p2, out, sum)
+                } else {
+                    step::<false>(c, src, minprev, p1, p2, out, sum)
+                };
+                hmin = m;
                 min_row[x] = if first {
                     m
                 } else {
                     min_row[x].saturating_add(m)
                 };
+                std::mem::swap(&mut hprev, &mut hcur);
+            }
+
+            // From the previous row: vertical, then the diagonals (x − step, x + step). No pixel
+            // of the row depends on another here, so each direction runs over the row on its own
+            // (short loops keep their state in registers).
+            for (dir, off) in [0isize, -1, 1].into_iter().take(ndir).enumerate() {
+                let (before, now) = (&prev[dir], &mut cur[dir]);
+                for x in 0..w {
+                    let c = &costs[x * k..(x + 1) * k];
+                    let sum = &mut s_row[x * k..(x + 1) * k];
+                    let xq = x as isize + off * step_x;
+                    let m = match gp {
+                        Some(gp) if xq >= 0 && (xq as usize) < w => {
+                            let xq = xq as usize;
+                            let p2 = self.pen.p2_table[g[x].abs_diff(gp[xq]) as usize];
+                            let shift = match (row_bases, prev_bases) {
+                                (Some(b), Some(pb)) => b[x] as isize - pb[xq] as isize,
+                                _ => 0,
+                            };
+                            let src = view_or_align(before, xq, shift, &mut aligned);
+                            let minprev = before.min[xq];
+                            step::<false>(c, src, minprev, p1, p2, now.window_mut(x), sum)
+                        }
+                        _ => {
+                            let p2 = self.pen.p2_table[0];
+                            step::<false>(c, start, 0, p1, p2, now.window_mut(x), sum)
+                        }
+                    };
+                    now.min[x] = m;
+                    min_row[x] = min_row[x].saturating_add(m);
+                }
             }
             drop(guard);
             std::mem::swap(&mut prev, &mut cur);
@@ -319,30 +351,38 @@ impl Sweep<'_> {
     }
 }
 
-/// The neighbour's path costs re-indexed to the pixel's window (`shift` = own base − neighbour's).
+/// Pixel `x` of `row` seen from a window `shift` disparities higher ([`PathRow::view`]); when the
+/// windows are too far apart for that, the costs copied into `scratch` at their new indices.
 #[inline(always)]
-fn align<'b>(neighbour: &'b [u16], shift: isize, scratch: &'b mut [u16]) -> &'b [u16] {
-    if shift == 0 {
-        return neighbour;
+fn view_or_align<'b>(
+    row: &'b PathRow,
+    x: usize,
+    shift: isize,
+    scratch: &'b mut [u16],
+) -> &'b [u16] {
+    if let Some(view) = row.view(x, shift) {
+        return view;
     }
-    let kp = neighbour.len() as isize;
-    // scratch[j] = neighbour[j + shift] for the inner values (1..kp-1), FAR elsewhere.
-    let lo = (1 - shift).clamp(0, kp) as usize;
-    let hi = (kp - 1 - shift).clamp(0, kp) as usize;
-    if lo >= hi {
-        scratch.fill(FAR);
-    } else {
-        scratch[..lo].fill(FAR);
-        let start = (lo as isize + shift) as usize;
-        scratch[lo..hi].copy_from_slice(&neighbour[start..start + (hi - lo)]);
-        scratch[hi..].fill(FAR);
+    let k = row.k as isize;
+    let own = row.view(x, 0).unwrap_or(&[]);
+    // scratch[j] = own[j + shift] for j + shift in 1..=k, FAR elsewhere.
+    scratch.fill(FAR);
+    let lo = (1 - shift).max(0);
+    let hi = (k + 1 - shift).min(k + 2);
+    if lo < hi {
+        let (lo, hi) = (lo as usize, hi as usize);
+        let from = (lo as isize + shift) as usize;
+        if let (Some(dst), Some(src)) = (scratch.get_mut(lo..hi), own.get(from..from + (hi - lo))) {
+            dst.copy_from_slice(src);
+        }
     }
     scratch
 }
 
 /// One recurrence step (eq. 3.3) for every disparity of a pixel; adds into `sum` (`ASSIGN`:
-/// overwrites it), returns the minimum of the new path costs. `prev` and `out` hold `k + 2`
-/// values with `FAR` at both ends.
+/// overwrites it), returns the minimum of the new path costs. `prev` holds `k + 2` values, the
+/// neighbour's costs at the pixel's disparity indices −1..=k (`FAR` where the neighbour has
+/// none); `out` receives the `k` new ones.
 #[inline(always)]
 fn step<const ASSIGN: bool>(
     cost: &[u8],
@@ -354,7 +394,7 @@ fn step<const ASSIGN: bool>(
     sum: &mut [u16],
 ) -> u16 {
     let k = cost.len();
-    let (prev, out, sum) = (&prev[..k + 2], &mut out[..k + 2], &mut sum[..k]);
+    let (prev, out, sum) = (&prev[..k + 2], &mut out[..k], &mut sum[..k]);
     let jump = minprev.saturating_add(p2);
     // Whole blocks of 16 lanes first (one AVX2 register each), then the rest one by one: a
     // single loop would leave windows shorter than the vectoriser's unrolled width all scalar.
@@ -371,11 +411,11 @@ fn step<const ASSIGN: bool>(
                 .min(lower[i].saturating_add(p1))
                 .min(upper[i].saturating_add(p1))
                 .min(jump);
-            // t ≥ minprev (minprev is the minimum of prev), so the subtraction cannot wrap.
+            // t ≥ minprev (minprev is the minimum of prev's window), so this cannot wrap.
             v[i] = (c[i] as u16).saturating_add(t - minprev);
             best[i] = best[i].min(v[i]);
         }
-        out[b + 1..b + 1 + LANES].copy_from_slice(&v);
+        out[b..b + LANES].copy_from_slice(&v);
         for (s, v) in sum[b..b + LANES].iter_mut().zip(v) {
             *s = if ASSIGN { v } else { s.saturating_add(v) };
         }
@@ -387,7 +427,7 @@ fn step<const ASSIGN: bool>(
             .min(prev[i + 2].saturating_add(p1))
             .min(jump);
         let v = (cost[i] as u16).saturating_add(t - minprev);
-        out[i + 1] = v;
+        out[i] = v;
         sum[i] = if ASSIGN { v } else { sum[i].saturating_add(v) };
         best = best.min(v);
     }
@@ -464,9 +504,12 @@ mod tests {
     }
 
     /// Eq. 3.3–3.4 written out plainly (u32, one path at a time): `S` and `Σ_r min_d L_r`.
+    /// Each pixel `p` searches `bases[p]..bases[p] + k` (all 0 without `bases`); a neighbour's
+    /// path cost at a disparity outside its own window counts as infinite.
     fn reference(
         cost: &FnCost<impl Fn(usize, usize, usize) -> u8 + Sync>,
         guide: &Raster<u8>,
+        bases: Option<&[u16]>,
         k: usize,
         paths: u32,
         pen: &Penalties,
@@ -477,6 +520,7 @@ mod tests {
             dirs.extend([(1, 1), (-1, 1), (1, -1), (-1, -1)]);
         }
         let idx = |x: isize, y: isize| (y * w + x) as usize;
+        let base = |p: usize| bases.map_or(0, |b| b[p] as usize);
         let (mut s, mut min_sum) = (
             vec![0u32; (w * h) as usize * k],
             vec![0u32; (w * h) as usize],
@@ -498,29 +542,34 @@ mod tests {
                 for &x in &xs {
                     let (qx, qy) = (x - dx, y - dy);
                     let p = idx(x, y);
-                    let c = |d: usize| (cost.at)(x as usize, y as usize, d) as u32;
+                    let c = |i: usize| (cost.at)(x as usize, y as usize, base(p) + i) as u32;
                     if qx < 0 || qy < 0 || qx >= w || qy >= h {
-                        for d in 0..k {
-                            l[p * k + d] = c(d);
+                        for i in 0..k {
+                            l[p * k + i] = c(i);
                         }
                         continue;
                     }
                     let q = idx(qx, qy);
                     let prev = &l[q * k..(q + 1) * k].to_vec();
                     let m = *prev.iter().min().unwrap();
+                    // The neighbour's path cost at an absolute disparity, infinite outside its window.
+                    let at = |d: isize| -> u32 {
+                        let i = d - base(q) as isize;
+                        if (0..k as isize).contains(&i) {
+                            prev[i as usize]
+                        } else {
+                            u32::MAX / 2
+                        }
+                    };
                     let grad = guide
                         .get(x as usize, y as usize)
                         .abs_diff(*guide.get(qx as usize, qy as usize));
                     let p2 = pen.p2_table[grad as usize] as u32;
-                    for d in 0..k {
-                        let mut t = prev[d].min(m + p2);
-                        if d > 0 {
-                            t = t.min(prev[d - 1] + pen.p1 as u32);
-                        }
-                        if d + 1 < k {
-                            t = t.min(prev[d + 1] + pen.p1 as u32);
-                        }
-                        l[p * k + d] = c(d) + t - m;
+                    let p1 = pen.p1 as u32;
+                    for i in 0..k {
+                        let d = (base(p) + i) as isize;
+                        let t = at(d).min(at(d - 1) + p1).min(at(d + 1) + p1).min(m + p2);
+                        l[p * k + i] = c(i) + t - m;
                     }
                 }
             }
@@ -543,12 +592,39 @@ mod tests {
         let guide = Raster::from_fn(w, h, |x, y| ((x * 29 + y * 13) % 17 * 15) as u8);
         for paths in [4, 8] {
             let pen = Penalties::new(10, 100, 16.0, paths);
-            let (s, min_sum) = reference(&noise, &guide, k, paths, &pen);
+            let (s, min_sum) = reference(&noise, &guide, None, k, paths, &pen);
             for store in [false, true] {
                 let a = aggregate(&noise, &guide, None, k, paths, &pen, store);
                 let widen = |v: &[u16]| v.iter().map(|&x| x as u32).collect::<Vec<_>>();
                 assert_eq!(widen(&a.s), s, "paths {paths}, stored {store}");
                 assert_eq!(widen(&a.min_sum), min_sum, "paths {paths}, stored {store}");
+            }
+        }
+    }
+
+    #[test]
+    fn per_pixel_windows_give_the_plain_recurrence_at_every_offset_between_neighbours() {
+        // Neighbouring windows from 0 up to 45 disparities apart (read in place below 16, copied
+        // beyond that, disjoint beyond k); k = 21 has a scalar tail, k = 32 none.
+        let (w, h) = (19, 11);
+        let noise = FnCost { w, h, at: noise };
+        let guide = Raster::from_fn(w, h, |x, y| ((x * 31 + y * 7) % 13 * 19) as u8);
+        let bases: Vec<u16> = (0..w * h)
+            .map(|p| match p % 7 {
+                0 => 45,
+                1 | 2 => (p % 5) as u16,
+                3 => 17,
+                _ => (p % 23) as u16,
+            })
+            .collect();
+        for (k, paths) in [(21, 8), (32, 8), (32, 4)] {
+            let pen = Penalties::new(10, 100, 16.0, paths);
+            let (s, min_sum) = reference(&noise, &guide, Some(&bases), k, paths, &pen);
+            for store in [false, true] {
+                let a = aggregate(&noise, &guide, Some(&bases), k, paths, &pen, store);
+                let widen = |v: &[u16]| v.iter().map(|&x| x as u32).collect::<Vec<_>>();
+                assert_eq!(widen(&a.s), s, "k {k}, paths {paths}, stored {store}");
+                assert_eq!(widen(&a.min_sum), min_sum, "k {k}, paths {paths}");
             }
         }
     }
