@@ -5,10 +5,10 @@
 //! first write to each 4 KiB page is a page fault: for the aggregated volume of a 0.37 MP pair
 //! (24 MB with a 32-disparity window) some 6 000 faults. Asking for huge pages
 //! (`madvise(MADV_HUGEPAGE)`, Linux) before the first write turns them into a dozen 2 MiB faults
-//! (measured in docs/stereo-eval.md, stop 23). Elsewhere, or where
-//! the system has transparent huge pages off, the buffer is an ordinary `Vec`.
+//! (measured in docs/stereo-eval.md, stop 23). Elsewhere, or where the system has transparent
+//! huge pages off, the buffer is an ordinary `Vec`.
 
-/// Buffers smaller than this gain nothing from huge pages (one 2 MiB page).
+/// A transparent huge page on x86-64 and most aarch64 kernels, bytes.
 const HUGE_PAGE: usize = 2 << 20;
 
 /// `len` copies of `T::zeroed()` in a `Vec` whose memory the kernel may back with huge pages.
@@ -22,6 +22,7 @@ pub fn zeroed<T: bytemuck::Zeroable + Clone>(len: usize) -> Vec<T> {
 /// buffers and on systems without `madvise`. Only useful before the pages are first written.
 fn advise_huge_pages<T>(v: &[T]) {
     let bytes = std::mem::size_of_val(v);
+    // Below two huge pages a buffer may not hold a whole aligned one.
     if bytes < 2 * HUGE_PAGE {
         return;
     }

@@ -139,7 +139,9 @@ pub fn aggregate(
 /// Bytes [`aggregate`] allocates for an image of `w × h` with `k` disparities (both sweeps).
 pub fn working_bytes(w: usize, h: usize, k: usize, store_costs: bool) -> usize {
     let volume = w * h * k * (2 + store_costs as usize) + w * h * 2;
-    let per_sweep = w * k + 2 * 3 * w * (k + 2 * PAD) * 2 + 3 * (k + 2 * PAD) * 2 + 3 * 2 * w * 2;
+    // Recomputed costs, two rows of three directions' path costs, the row path's two pixels, the
+    // entry costs and the re-indexing scratch, and the per-pixel minima.
+    let per_sweep = w * k + 2 * 3 * w * (k + 2 * PAD) * 2 + 4 * (k + 2 * PAD) * 2 + 3 * 2 * w * 2;
     volume + 2 * per_sweep
 }
 
@@ -624,7 +626,11 @@ mod tests {
                 let a = aggregate(&noise, &guide, Some(&bases), k, paths, &pen, store);
                 let widen = |v: &[u16]| v.iter().map(|&x| x as u32).collect::<Vec<_>>();
                 assert_eq!(widen(&a.s), s, "k {k}, paths {paths}, stored {store}");
-                assert_eq!(widen(&a.min_sum), min_sum, "k {k}, paths {paths}");
+                assert_eq!(
+                    widen(&a.min_sum),
+                    min_sum,
+                    "k {k}, paths {paths}, stored {store}"
+                );
             }
         }
     }
