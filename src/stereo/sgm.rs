@@ -239,9 +239,10 @@ impl Sweep<'_> {
         let mut hcur = PathRow::new(1, k);
         let mut hmin = 0u16;
         // A path that enters the image here starts from zeros (then L = C).
-        let mut start = PathRow::new(1, k);
-        start.window_mut(0).fill(0);
-        let start = start.view(0, 0).unwrap_or(&[]);
+        let mut start = vec![0u16; k + 2];
+        start[0] = FAR;
+        start[k + 1] = FAR;
+        let start = &start[..];
         // A neighbour's costs re-indexed to the pixel's window, when the two are far apart.
         let mut aligned = vec![FAR; k + 2];
         let p1 = self.pen.p1;
@@ -586,6 +587,29 @@ mod tests {
         (s, min_sum)
     }
 
+    /// `aggregate`, with stored and with recomputed costs, gives exactly [`reference`]'s `S` and
+    /// `Σ_r min_d L_r`.
+    fn assert_matches_reference(
+        cost: &FnCost<impl Fn(usize, usize, usize) -> u8 + Sync>,
+        guide: &Raster<u8>,
+        bases: Option<&[u16]>,
+        k: usize,
+        paths: u32,
+        pen: &Penalties,
+    ) {
+        let (s, min_sum) = reference(cost, guide, bases, k, paths, pen);
+        let widen = |v: &[u16]| v.iter().map(|&x| x as u32).collect::<Vec<_>>();
+        for store in [false, true] {
+            let a = aggregate(cost, guide, bases, k, paths, pen, store);
+            assert_eq!(widen(&a.s), s, "k {k}, paths {paths}, stored {store}");
+            assert_eq!(
+                widen(&a.min_sum),
+                min_sum,
+                "k {k}, paths {paths}, stored {store}"
+            );
+        }
+    }
+
     #[test]
     fn both_sweeps_give_the_plain_recurrence_with_stored_or_recomputed_costs() {
         // k = 21: one whole 16-lane block and a scalar tail.
@@ -594,13 +618,7 @@ mod tests {
         let guide = Raster::from_fn(w, h, |x, y| ((x * 29 + y * 13) % 17 * 15) as u8);
         for paths in [4, 8] {
             let pen = Penalties::new(10, 100, 16.0, paths);
-            let (s, min_sum) = reference(&noise, &guide, None, k, paths, &pen);
-            for store in [false, true] {
-                let a = aggregate(&noise, &guide, None, k, paths, &pen, store);
-                let widen = |v: &[u16]| v.iter().map(|&x| x as u32).collect::<Vec<_>>();
-                assert_eq!(widen(&a.s), s, "paths {paths}, stored {store}");
-                assert_eq!(widen(&a.min_sum), min_sum, "paths {paths}, stored {store}");
-            }
+            assert_matches_reference(&noise, &guide, None, k, paths, &pen);
         }
     }
 
@@ -621,17 +639,7 @@ mod tests {
             .collect();
         for (k, paths) in [(21, 8), (32, 8), (32, 4)] {
             let pen = Penalties::new(10, 100, 16.0, paths);
-            let (s, min_sum) = reference(&noise, &guide, Some(&bases), k, paths, &pen);
-            for store in [false, true] {
-                let a = aggregate(&noise, &guide, Some(&bases), k, paths, &pen, store);
-                let widen = |v: &[u16]| v.iter().map(|&x| x as u32).collect::<Vec<_>>();
-                assert_eq!(widen(&a.s), s, "k {k}, paths {paths}, stored {store}");
-                assert_eq!(
-                    widen(&a.min_sum),
-                    min_sum,
-                    "k {k}, paths {paths}, stored {store}"
-                );
-            }
+            assert_matches_reference(&noise, &guide, Some(&bases), k, paths, &pen);
         }
     }
 
