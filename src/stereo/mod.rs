@@ -127,7 +127,9 @@ pub fn match_pair(
     options.validate(left.width())?;
     let start = Instant::now();
     let mut stats = StereoStats::default();
-    let (l, mut r) = stats.time("stereo.prepare", || (grey(left), grey(right)));
+    let (l, mut r) = stats.time("stereo.prepare", || {
+        rayon::join(|| grey(left), || grey(right))
+    });
     if options.correct_misalignment {
         let (est, warped) = stats.time("stereo.rectify", || {
             let est = rectify::estimate_misalignment(&l, &r, options.max_disparity as usize);

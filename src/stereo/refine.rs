@@ -138,32 +138,21 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
         let base = bases.map_or(0, |b| b[x] as usize);
         let (bv, bi) = first_min(s);
         // Right view: disparities d = base + i ≤ x only, i.e. right pixels x − base − i.
-        let valid = if x >= base { (x - base + 1).min(k) } else { 0 };
-        let m0 = w - 1 - (x - base.min(x));
-        for (i, (r, &v)) in mirrored[m0..m0 + valid]
-            .iter_mut()
-            .zip(&s[..valid])
-            .enumerate()
-        {
-            *r = (*r).min((v as u32) << 16 | (base + i) as u32);
+        if x >= base {
+            let valid = (x - base + 1).min(k);
+            let m0 = w - 1 - (x - base);
+            update_right(&mut mirrored[m0..m0 + valid], &s[..valid], base as u32);
         }
         best_left[x] = (base + bi) as u32;
-        let u = bv.saturating_sub(agg.min_sum[y * w + x]) as f32;
-        conf[x] = 1.0 / (1.0 + u / unit);
-        if opts.uniqueness > 0 {
-            // Unique when every disparity not adjacent to the winner costs at least
-            // bv / (1 − uniqueness): compare the smallest of them once.
-            let below = s[..bi.saturating_sub(1)].iter().copied().min();
-            let above = s.get(bi + 2..).and_then(|t| t.iter().copied().min());
-            let other = match (below, above) {
-                (Some(a), Some(b)) => Some(a.min(b)),
-                (a, b) => a.or(b),
-            };
-            if let Some(v) = other {
-                if (v as u64) * (100 - opts.uniqueness as u64) < bv as u64 * 100 {
-                    st[x] = PixelState::Mismatch;
-                    continue;
-                }
+        // U_p here, its confidence after the loop (divisions vectorise there, not here).
+        conf[x] = bv.saturating_sub(agg.min_sum[y * w + x]) as f32;
+        // Unique when every disparity not adjacent to the winner costs at least
+        // bv / (1 − uniqueness): compare the smallest of them once.
+        if opts.uniqueness > 0 && (bi >= 2 || bi + 2 < k) {
+            let other = min_away_from(s, bi);
+            if (other as u64) * (100 - opts.uniqueness as u64) < bv as u64 * 100 {
+                st[x] = PixelState::Mismatch;
+                continue;
             }
         }
         let off = if bi > 0 && bi + 1 < k {
@@ -172,6 +161,9 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
             0.0
         };
         disp[x] = (base + bi) as f32 + off;
+    }
+    for c in conf.iter_mut() {
+        *c = 1.0 / (1.0 + *c / unit);
     }
     if let Some(tol) = opts.lr_max_diff {
         for x in 0..w {
@@ -187,10 +179,11 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
         // pass the check (its true match is hidden), and a mismatch otherwise.
         // Pixel x at disparity d = x − xr passes when |best(xr) − d| ≤ tol, i.e. when x lies
         // within tol of xr + best(xr): mark those x once per right pixel instead of trying
-        // every disparity of every failed pixel.
+        // every disparity of every failed pixel. The marks are counted as +1 at the start of
+        // each interval and −1 after its end, so a running sum says whether x is covered.
         let top = bases.map_or(k, |b| b.iter().map(|&v| v as usize + k).max().unwrap_or(k));
         let tol = tol as usize;
-        let mut reachable = vec![false; w];
+        let mut starts = vec![0i32; w + 1];
         for (xr, &packed) in mirrored.iter().rev().enumerate() {
             if packed == u32::MAX {
                 continue;
@@ -198,12 +191,15 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
             let t = xr + (packed & 0xFFFF) as usize;
             let lo = t.saturating_sub(tol).max(xr);
             let hi = (t + tol).min(xr + top - 1).min(w - 1);
-            for r in reachable.iter_mut().take(hi + 1).skip(lo) {
-                *r = true;
+            if lo <= hi {
+                starts[lo] += 1;
+                starts[hi + 1] -= 1;
             }
         }
+        let mut covering = 0i32;
         for x in 0..w {
-            if st[x] != PixelState::Valid && !reachable[x] {
+            covering += starts[x];
+            if st[x] != PixelState::Valid && covering == 0 {
                 st[x] = PixelState::Occluded;
             }
         }
@@ -213,6 +209,36 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
             disp[x] = f32::NAN;
         }
     }
+}
+
+/// `mirrored[i] = min(mirrored[i], costs[i] << 16 | (base + i))`: one pixel's costs offered to
+/// the right-view pixels its disparities reach (see [`decide_row`]).
+#[inline(always)]
+fn update_right(mirrored: &mut [u32], costs: &[u16], base: u32) {
+    for ((r, &v), i) in mirrored.iter_mut().zip(costs).zip(0u32..) {
+        *r = (*r).min((v as u32) << 16 | (base + i));
+    }
+}
+
+/// The smallest cost of `s` more than one disparity away from index `winner` (`u16::MAX` when
+/// there is none). One pass over the whole window, the winner and its neighbours masked out,
+/// instead of two slices of varying length (which the compiler leaves scalar).
+#[inline(always)]
+fn min_away_from(s: &[u16], winner: usize) -> u16 {
+    // `i − (winner − 1)` in wrapping arithmetic is 0, 1, 2 for the three masked indices and
+    // larger for every other (including winner = 0, where it wraps to i + 1).
+    let first_masked = (winner as u16).wrapping_sub(1);
+    s.iter()
+        .zip(0u16..)
+        .map(|(&v, i)| {
+            if i.wrapping_sub(first_masked) > 2 {
+                v
+            } else {
+                u16::MAX
+            }
+        })
+        .min()
+        .unwrap_or(u16::MAX)
 }
 
 /// The smallest value of `s` and its first index (`(u16::MAX, 0)` for an empty slice).
@@ -471,5 +497,154 @@ mod tests {
             let o = subpixel_offset(m, 0.0, 0.0, 100.0);
             assert!((-0.5..=0.5).contains(&o));
         }
+    }
+
+    /// `decide` written out plainly: every pixel's window searched with its own loops, the
+    /// right view's winners found by visiting every (pixel, disparity) pair, and a failed pixel
+    /// called occluded when no disparity of the whole range would pass the check.
+    fn plain_decide(
+        agg: &Aggregated,
+        bases: Option<&[u16]>,
+        opts: &DecideOptions,
+    ) -> (Vec<f32>, Vec<PixelState>, Vec<f32>) {
+        let (w, h, k) = (agg.width, agg.height, agg.k);
+        let unit = opts.confidence_unit.max(1e-3) * agg.paths as f32;
+        let mut disp = vec![f32::NAN; w * h];
+        let mut state = vec![PixelState::Valid; w * h];
+        let mut conf = vec![0f32; w * h];
+        let top = bases.map_or(k, |b| b.iter().map(|&v| v as usize + k).max().unwrap_or(k));
+        for y in 0..h {
+            let base = |x: usize| bases.map_or(0, |b| b[y * w + x] as usize);
+            let cost = |x: usize, i: usize| agg.s[(y * w + x) * k + i];
+            // (cost, disparity) of each right pixel's best match, smallest disparity on ties.
+            let mut right: Vec<Option<(u16, usize)>> = vec![None; w];
+            for x in 0..w {
+                for i in 0..k {
+                    let d = base(x) + i;
+                    if d <= x {
+                        let c = (cost(x, i), d);
+                        let r = &mut right[x - d];
+                        if r.is_none_or(|best| c < best) {
+                            *r = Some(c);
+                        }
+                    }
+                }
+            }
+            for x in 0..w {
+                let p = y * w + x;
+                let mut bi = 0;
+                for i in 1..k {
+                    if cost(x, i) < cost(x, bi) {
+                        bi = i;
+                    }
+                }
+                let bv = cost(x, bi);
+                conf[p] = 1.0 / (1.0 + bv.saturating_sub(agg.min_sum[p]) as f32 / unit);
+                let d = base(x) + bi;
+                let other = (0..k)
+                    .filter(|&i| i.abs_diff(bi) > 1)
+                    .map(|i| cost(x, i))
+                    .min();
+                let unique = opts.uniqueness == 0
+                    || other.is_none_or(|v| {
+                        (v as u64) * (100 - opts.uniqueness as u64) >= bv as u64 * 100
+                    });
+                let passes = |x: usize, d: usize, tol: u32| {
+                    d <= x && right[x - d].is_some_and(|(_, dr)| dr.abs_diff(d) as u32 <= tol)
+                };
+                let consistent = opts.lr_max_diff.is_none_or(|tol| passes(x, d, tol));
+                if !(unique && consistent) {
+                    // Any failed pixel (not unique, or inconsistent) is occluded when no
+                    // disparity at all would pass the check.
+                    let hidden = opts
+                        .lr_max_diff
+                        .is_some_and(|tol| !(0..top).any(|d| passes(x, d, tol)));
+                    state[p] = if hidden {
+                        PixelState::Occluded
+                    } else {
+                        PixelState::Mismatch
+                    };
+                    continue;
+                }
+                let off = if bi > 0 && bi + 1 < k {
+                    let c = |i: usize| cost(x, i) as f32;
+                    subpixel_offset(opts.subpixel, c(bi - 1), c(bi), c(bi + 1))
+                } else {
+                    0.0
+                };
+                disp[p] = d as f32 + off;
+            }
+        }
+        (disp, state, conf)
+    }
+
+    #[test]
+    fn decide_matches_the_plain_search_with_ties_windows_and_borders() {
+        use crate::mesh::surfaces::XorShift;
+        let mut rng = XorShift(0x5eed_cafe);
+        let mut cases = 0;
+        for (w, h, k, max_d) in [
+            (1, 1, 1, 0),
+            (5, 2, 3, 2),
+            (7, 3, 4, 10),
+            (37, 4, 16, 15),
+            (40, 3, 21, 30),
+            (64, 2, 32, 60),
+            (23, 2, 40, 39),
+        ] {
+            for windowed in [false, true] {
+                if windowed && max_d + 1 == k {
+                    continue;
+                }
+                for (uniqueness, lr, subpixel) in [
+                    (0, None, Subpixel::Parabola),
+                    (5, Some(1), Subpixel::Equiangular),
+                    (15, Some(0), Subpixel::Parabola),
+                    (0, Some(2), Subpixel::Equiangular),
+                ] {
+                    // Few cost levels, so that ties are common.
+                    let s: Vec<u16> = (0..w * h * k)
+                        .map(|_| (rng.next_u64() % 12) as u16)
+                        .collect();
+                    let min_sum: Vec<u16> =
+                        (0..w * h).map(|_| (rng.next_u64() % 6) as u16).collect();
+                    let bases: Vec<u16> = (0..w * h)
+                        .map(|_| (rng.next_u64() % (max_d + 2 - k) as u64) as u16)
+                        .collect();
+                    let agg = Aggregated {
+                        width: w,
+                        height: h,
+                        k,
+                        s,
+                        min_sum,
+                        paths: 4,
+                    };
+                    let bases = windowed.then_some(bases.as_slice());
+                    let opts = DecideOptions {
+                        subpixel,
+                        uniqueness,
+                        lr_max_diff: lr,
+                        confidence_unit: 3.0,
+                    };
+                    let got = decide(&agg, bases, &opts);
+                    let (disp, state, conf) = plain_decide(&agg, bases, &opts);
+                    let what = format!("{w}×{h}, k {k}, windowed {windowed}, {opts:?}");
+                    assert_eq!(got.state, state, "states, {what}");
+                    for (a, b) in got.disparity.pixels().iter().zip(&disp) {
+                        assert!(
+                            a.to_bits() == b.to_bits() || a.is_nan() && b.is_nan(),
+                            "{a} vs {b}, {what}"
+                        );
+                    }
+                    assert_eq!(
+                        got.confidence.pixels(),
+                        conf.as_slice(),
+                        "confidence, {what}"
+                    );
+                    cases += 1;
+                }
+            }
+        }
+        assert_eq!(cases, 40);
     }
 }
