@@ -104,14 +104,14 @@ pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
 enum Vertical {
     /// Left and right along the row, up, up-left and up-right (rows visited top to bottom).
     Up,
-    /// Down, down-left and down-right (rows visited bottom to top); the row entries are NaN.
+    /// Down, down-left and down-right (rows visited bottom to top).
     Down,
 }
 
 /// For each hole (`holes`: the pixel indices of the NaNs of `src`, ascending), the nearest valid
-/// value met walking from it in each direction of `looking`: along the row to the right and to
-/// the left (`Up` only), then straight, left and right diagonally up (or down). NaN where the
-/// walk leaves the image first.
+/// value met walking from it in each direction of `looking`, NaN where the walk leaves the image
+/// first: `Up` gives [right, left, up, up-left, up-right]; `Down` gives [down, down-left,
+/// down-right, NaN, NaN].
 ///
 /// Each row is a few passes without branches (a hole's value is the carried one): whether a
 /// pixel is a hole is as good as random where the L/R check rejected scattered pixels, and a
@@ -166,7 +166,8 @@ fn sweep_rows(src: &[f32], w: usize, holes: &[usize], looking: Vertical) -> Vec<
             }
             for (c, &p) in found.iter_mut().zip(&holes[range]) {
                 let x = p - y * w;
-                // A hole's carried values are its nearest valid ones in the row before.
+                // At a hole, `next` holds what was carried to it: its nearest valid values
+                // along the three directions through the rows already swept.
                 *c = if looking == Vertical::Up {
                     [to_right[x], to_left[x], next[0][x], next[1][x], next[2][x]]
                 } else {
