@@ -47,15 +47,11 @@ pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
         || sweep_rows(src, w, &holes, Vertical::Up),
         || sweep_rows(src, w, &holes, Vertical::Down),
     );
-    let candidates: Vec<[f32; 8]> = looking_up
-        .par_iter()
-        .zip(&looking_down)
-        .map(|(up, down)| [up[0], up[1], up[2], up[3], up[4], down[0], down[1], down[2]])
-        .collect();
     let values: Vec<f32> = holes
         .par_iter()
-        .zip(candidates.par_iter())
-        .map(|(&p, c)| {
+        .zip(looking_up.par_iter().zip(&looking_down))
+        .map(|(&p, (up, down))| {
+            let c = [up[0], up[1], up[2], up[3], up[4], down[0], down[1], down[2]];
             let mut buf = [0f32; 8];
             let mut len = 0;
             for &x in c.iter().filter(|v| !v.is_nan()) {
