@@ -19,6 +19,7 @@
 use rayon::prelude::*;
 
 use super::refine::PixelState;
+use super::simd::exp_neg;
 use crate::image::Raster;
 
 /// Disparity difference between a hole's two row neighbours above which the hole is taken to sit
@@ -393,27 +394,6 @@ fn add_tap(tap: &Tap<'_>, sum: &mut [f32], weight: &mut [f32]) {
     }
 }
 
-/// `e^(−x)` for `x ≥ 0` in arithmetic the compiler vectorises (the standard `exp` is a library
-/// call, and a table lookup per lane is a gather, both of which leave [`add_tap`] scalar):
-/// `2^t` with `t = −x·log₂e` split into its nearest integer, placed in the exponent bits, and a
-/// remainder in [−½, ½] by a degree-6 Taylor polynomial. Relative error below 5·10⁻⁶ (most of it the rounding of `t`); results
-/// under 2⁻¹²⁶ come out as 2⁻¹²⁶ (a weight that small is nothing next to the centre's).
-#[inline(always)]
-fn exp_neg(x: f32) -> f32 {
-    use std::f32::consts::{LN_2, LOG2_E};
-    // Adding 1.5·2²³ rounds to the nearest integer in the mantissa bits: no float-to-int
-    // conversion, whose saturating semantics would keep the loop scalar.
-    const ROUND: f32 = 12_582_912.0;
-    let t = (-x * LOG2_E).max(-126.0);
-    let rounded = t + ROUND;
-    let whole = (rounded.to_bits() as i32).wrapping_sub(ROUND.to_bits() as i32);
-    let f = (t - (rounded - ROUND)) * LN_2;
-    let poly = 1.0
-        + f * (1.0
-            + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f / 720.0)))));
-    f32::from_bits(((whole + 127) as u32) << 23) * poly
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -440,19 +420,6 @@ mod tests {
         let mut d = Raster::filled(4, 4, f32::NAN);
         fill_holes(&mut d, &[PixelState::Mismatch; 16]);
         assert!(d.pixels().iter().all(|&v| v == 0.0));
-    }
-
-    #[test]
-    fn exp_neg_matches_the_standard_exp() {
-        assert_eq!(exp_neg(0.0), 1.0);
-        for i in 0..=16_000 {
-            let x = i as f32 * 0.005;
-            let (got, want) = (exp_neg(x), (-x).exp());
-            assert!((got - want).abs() <= 5e-6 * want, "e^-{x}: {got} vs {want}");
-        }
-        // Far below f32's normal range: the smallest normal, never 0 or NaN.
-        assert_eq!(exp_neg(1e4), f32::MIN_POSITIVE);
-        assert_eq!(exp_neg(f32::MAX), f32::MIN_POSITIVE);
     }
 
     #[test]

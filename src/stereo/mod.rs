@@ -29,6 +29,7 @@ pub mod cost;
 pub mod dp;
 pub mod fill;
 pub mod metrics;
+pub mod noise;
 pub mod options;
 pub mod preview;
 pub mod pyramid;
@@ -41,11 +42,13 @@ pub mod speckle;
 
 use std::time::Instant;
 
+use rayon::prelude::*;
+
 pub use options::{Aggregation, CostKind, Preset, StereoOptions, Subpixel};
 
 use crate::camera::StereoCalibration;
 use crate::error::{Error, Result};
-use crate::image::{ImageView, Raster};
+use crate::image::{ImageView, PixelFormat, Raster};
 use cost::CostRows;
 use refine::{DecideOptions, Decision, PixelState};
 
@@ -86,6 +89,11 @@ pub struct StereoStats {
     /// The residual vertical misalignment undone in the right view (`refine_alignment`), when
     /// one large enough to matter was found.
     pub residual_alignment: Option<alignment::VerticalResidual>,
+    /// Median census cost (0–255) of the pair's matches at the half-size level's disparities,
+    /// when measured (`noise_adaptive_penalties`): 24–49 on clean photographs, more on noisy ones.
+    pub match_cost_floor: Option<f32>,
+    /// Factor applied to P1 and P2 for this pair (1 = as given; see [`noise::penalty_scale`]).
+    pub penalty_scale: f32,
 }
 
 impl StereoStats {
@@ -151,8 +159,31 @@ pub fn match_pair(
 
 /// Grey levels 0–255 of the encoded values (what block matching wants; see `ImageView::to_luma`).
 fn grey(view: &ImageView) -> Raster<u8> {
-    view.to_luma()
-        .map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+    // 8-bit colour: the same arithmetic as `to_luma`, with the channels' places fixed per format
+    // and rows in parallel, rather than a format match and a float image in between.
+    let layout = match view.format() {
+        PixelFormat::Gray8 => Some((1, [0, 0, 0])),
+        PixelFormat::Rgb8 => Some((3, [0, 1, 2])),
+        PixelFormat::Rgba8 => Some((4, [0, 1, 2])),
+        PixelFormat::Bgra8 => Some((4, [2, 1, 0])),
+        _ => None,
+    };
+    let to_u8 = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+    let Some((bytes, [r, g, b])) = layout else {
+        return view.to_luma().map(|&v| to_u8(v));
+    };
+    let (w, h) = (view.width() as usize, view.height() as usize);
+    let mut out = vec![0u8; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        const S: f32 = 1.0 / 255.0;
+        for (o, px) in out.iter_mut().zip(view.row(y as u32).chunks_exact(bytes)) {
+            let luma = 0.2126 * (px[r] as f32 * S)
+                + 0.7152 * (px[g] as f32 * S)
+                + 0.0722 * (px[b] as f32 * S);
+            *o = to_u8(luma);
+        }
+    });
+    Raster::from_vec(w, h, out)
 }
 
 /// The whole pipeline on grey images; returns (disparity, confidence).
@@ -178,7 +209,7 @@ pub(crate) fn match_grey(
         && h >= 4;
     let use_coarse = half_size_match && o.coarse_levels > 0 && (o.coarse_window as usize) < levels;
     let wants_alignment = half_size_match && o.refine_alignment;
-    let (bases, k, r) = if use_coarse || wants_alignment {
+    let (bases, k, r, coarse) = if use_coarse || wants_alignment {
         let start = Instant::now();
         let (cl, cr) = (pyramid::reduce(l), pyramid::reduce(r));
         // The coarse level only centres each pixel's window, and the window's margin absorbs
@@ -222,16 +253,28 @@ pub(crate) fn match_grey(
         };
         if let Some((m, warped)) = aligned {
             stats.residual_alignment = Some(m);
-            (bases, k, std::borrow::Cow::Owned(warped))
+            (bases, k, std::borrow::Cow::Owned(warped), Some(coarse))
         } else {
-            (bases, k, std::borrow::Cow::Borrowed(r))
+            (bases, k, std::borrow::Cow::Borrowed(r), Some(coarse))
         }
     } else {
-        (None, levels, std::borrow::Cow::Borrowed(r))
+        (None, levels, std::borrow::Cow::Borrowed(r), None)
     };
     let r: &Raster<u8> = &r;
 
     let cost = stats.time("stereo.cost", || make_cost(l, r, o));
+    // A noisy pair's matches cost more, closer to unrelated pixels: the penalties grow to keep
+    // their balance with the data term (census, measured at the half-size level's disparities).
+    let penalty_scale = match (&coarse, o.noise_adaptive_penalties, o.cost) {
+        (Some(coarse), true, CostKind::Census) => {
+            let floor = noise::match_cost_floor(cost.as_ref(), coarse);
+            stats.match_cost_floor = floor;
+            floor.map_or(1.0, noise::penalty_scale)
+        }
+        _ => 1.0,
+    };
+    stats.penalty_scale = penalty_scale;
+    let scaled = |p: u16| (p as f32 * penalty_scale).round().min(u16::MAX as f32) as u16;
     let cost_bytes = match o.cost {
         CostKind::Census => 16 * n,
         CostKind::Sad => 0,
@@ -245,7 +288,7 @@ pub(crate) fn match_grey(
             } else {
                 4
             };
-            let pen = sgm::Penalties::new(o.p1, o.p2, o.p2_gradient_scale, paths);
+            let pen = sgm::Penalties::new(scaled(o.p1), scaled(o.p2), o.p2_gradient_scale, paths);
             // Costs are computed once for both sweeps, in a stored volume (1 byte a pixel and
             // disparity searched), when the whole of this step's memory still fits the matcher's
             // bound, 2 bytes per pixel and disparity of the full-size range plus 64 MiB: with a

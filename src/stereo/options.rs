@@ -146,6 +146,12 @@ pub struct StereoOptions {
     /// ±2 px) from the half-size level's disparities and undo it before the full-size match
     /// (`alignment::estimate_residual`); without coarse-to-fine a half-size match is made for it.
     pub refine_alignment: bool,
+    /// Scale P1 and P2 up for a noisy pair (census with a half-size level only): by how much the
+    /// median cost of the half-size level's matches has closed the gap to the cost of unrelated
+    /// pixels, against a clean pair's (`noise::penalty_scale`, at most 8×). Clean photographs
+    /// keep the penalties as given. Off in every preset: on the noisy built-in renders it helped
+    /// some figures and hurt others (docs/stereo-eval.md, stop 25).
+    pub noise_adaptive_penalties: bool,
 }
 
 impl Default for StereoOptions {
@@ -179,6 +185,7 @@ impl StereoOptions {
             coarse_window: 32,
             correct_misalignment: false,
             refine_alignment: true,
+            noise_adaptive_penalties: false,
         };
         match preset {
             Preset::Balanced => balanced,

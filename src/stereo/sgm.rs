@@ -423,6 +423,41 @@ fn step<const ASSIGN: bool>(
             *s = if ASSIGN { v } else { s.saturating_add(v) };
         }
     }
+    let tail = k - blocks;
+    if tail > 0 && blocks > 0 {
+        // The last `tail` disparities as one more whole block, the one ending at `k`: it overlaps
+        // the block before by `LANES − tail` lanes, which it recomputes to the same values (same
+        // inputs) and leaves out of `sum`, so that they are not added twice. A scalar tail costs
+        // as much as two blocks (the coarse level's and a full search's `k` are rarely multiples
+        // of 16).
+        let b = k - LANES;
+        let c: &[u8; LANES] = cost[b..k].try_into().unwrap_or(&[0; LANES]);
+        let lower: &[u16; LANES] = prev[b..b + LANES].try_into().unwrap_or(&[0; LANES]);
+        let same: &[u16; LANES] = prev[b + 1..b + 1 + LANES].try_into().unwrap_or(&[0; LANES]);
+        let upper: &[u16; LANES] = prev[b + 2..b + 2 + LANES].try_into().unwrap_or(&[0; LANES]);
+        let mut v = [0u16; LANES];
+        for i in 0..LANES {
+            let t = same[i]
+                .min(lower[i].saturating_add(p1))
+                .min(upper[i].saturating_add(p1))
+                .min(jump);
+            v[i] = (c[i] as u16).saturating_add(t - minprev);
+            best[i] = best[i].min(v[i]);
+        }
+        out[b..k].copy_from_slice(&v);
+        let new_from = LANES - tail;
+        for (i, (s, v)) in sum[b..k].iter_mut().zip(v).enumerate() {
+            // All ones on the lanes this block adds, zero on those the block before wrote.
+            let new = ((i >= new_from) as u16).wrapping_neg();
+            *s = if ASSIGN {
+                (*s & !new) | (v & new)
+            } else {
+                s.saturating_add(v & new)
+            };
+        }
+        return best.iter().copied().min().unwrap_or(u16::MAX);
+    }
+    // Fewer than `LANES` disparities in all: one by one.
     let mut best = best.iter().copied().min().unwrap_or(u16::MAX);
     for i in blocks..k {
         let t = prev[i + 1]
@@ -612,20 +647,24 @@ mod tests {
 
     #[test]
     fn both_sweeps_give_the_plain_recurrence_with_stored_or_recomputed_costs() {
-        // k = 21: one whole 16-lane block and a scalar tail.
-        let (w, h, k) = (23, 9, 21);
+        // Fewer disparities than a 16-lane block (one by one), whole blocks, and whole blocks
+        // with a last block overlapping the one before by 11, 1 and 15 lanes.
+        let (w, h) = (23, 9);
         let noise = FnCost { w, h, at: noise };
         let guide = Raster::from_fn(w, h, |x, y| ((x * 29 + y * 13) % 17 * 15) as u8);
-        for paths in [4, 8] {
-            let pen = Penalties::new(10, 100, 16.0, paths);
-            assert_matches_reference(&noise, &guide, None, k, paths, &pen);
+        for k in [7, 16, 21, 31, 33] {
+            for paths in [4, 8] {
+                let pen = Penalties::new(10, 100, 16.0, paths);
+                assert_matches_reference(&noise, &guide, None, k, paths, &pen);
+            }
         }
     }
 
     #[test]
     fn per_pixel_windows_give_the_plain_recurrence_at_every_offset_between_neighbours() {
         // Neighbouring windows from 0 up to 45 disparities apart (read in place below 16, copied
-        // beyond that, disjoint beyond k); k = 21 has a scalar tail, k = 32 none.
+        // beyond that, disjoint beyond k); k = 21 and 37 end with a block overlapping the one
+        // before, k = 32 does not.
         let (w, h) = (19, 11);
         let noise = FnCost { w, h, at: noise };
         let guide = Raster::from_fn(w, h, |x, y| ((x * 31 + y * 7) % 13 * 19) as u8);
@@ -637,7 +676,7 @@ mod tests {
                 _ => (p % 23) as u16,
             })
             .collect();
-        for (k, paths) in [(21, 8), (32, 8), (32, 4)] {
+        for (k, paths) in [(21, 8), (32, 8), (32, 4), (37, 8)] {
             let pen = Penalties::new(10, 100, 16.0, paths);
             assert_matches_reference(&noise, &guide, Some(&bases), k, paths, &pen);
         }

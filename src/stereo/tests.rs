@@ -457,3 +457,105 @@ fn a_residual_vertical_offset_is_measured_and_undone() {
     });
     assert!(run(&l, &r0, &opts(24)).stats.residual_alignment.is_none());
 }
+
+#[test]
+fn grey_levels_of_every_8_bit_layout_match_the_luma_of_the_photo() {
+    use crate::mesh::surfaces::XorShift;
+    let mut rng = XorShift(0x9e7);
+    let (w, h) = (7, 5);
+    let rgba: Vec<u8> = (0..w * h * 4).map(|_| rng.next_u64() as u8).collect();
+    let rgb: Vec<u8> = rgba
+        .chunks_exact(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    let bgra: Vec<u8> = rgba
+        .chunks_exact(4)
+        .flat_map(|p| [p[2], p[1], p[0], p[3]])
+        .collect();
+    let grey8: Vec<u8> = rgba.chunks_exact(4).map(|p| p[1]).collect();
+    // Rows padded by 3 bytes: the stride is honoured.
+    let padded = |data: &[u8], bytes: usize| -> Vec<u8> {
+        data.chunks_exact(w * bytes)
+            .flat_map(|row| row.iter().copied().chain([0xAA; 3]))
+            .collect()
+    };
+    for (data, format, bytes) in [
+        (&rgba, PixelFormat::Rgba8, 4),
+        (&rgb, PixelFormat::Rgb8, 3),
+        (&bgra, PixelFormat::Bgra8, 4),
+        (&grey8, PixelFormat::Gray8, 1),
+    ] {
+        let bytes_padded = padded(data, bytes);
+        let view =
+            ImageView::new(&bytes_padded, w as u32, h as u32, w * bytes + 3, format).unwrap();
+        let want = view
+            .to_luma()
+            .map(|&v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
+        assert_eq!(grey(&view), want, "{format:?}");
+    }
+    // The three colour layouts hold the same pixels.
+    let view = |data: &[u8], format, bytes: usize| {
+        grey(&ImageView::new(data, w as u32, h as u32, w * bytes, format).unwrap())
+    };
+    let first = view(&rgba, PixelFormat::Rgba8, 4);
+    assert_eq!(view(&rgb, PixelFormat::Rgb8, 3), first);
+    assert_eq!(view(&bgra, PixelFormat::Bgra8, 4), first);
+}
+
+#[test]
+fn penalties_grow_with_the_noise_of_the_pair_and_stay_for_a_clean_one() {
+    use crate::mesh::surfaces::XorShift;
+    let (w, h, d) = (120, 60, 6.0);
+    // A textured plane at 6 px, and the same views with independent noise of up to ±50 grey
+    // levels in each.
+    let clean_l = gray(w, h, |x, y| texture(x as f32, y as f32));
+    let clean_r = gray(w, h, |x, y| texture(x as f32 + d, y as f32));
+    let mut rng = XorShift(0x5eed);
+    let mut noisy = |img: &Image| {
+        let data: Vec<u8> = img
+            .view()
+            .row(0)
+            .iter()
+            .chain((1..h as u32).flat_map(|y| img.view().row(y).iter()))
+            .map(|&v| (v as i32 + (rng.next_u64() % 101) as i32 - 50).clamp(0, 255) as u8)
+            .collect();
+        Image::from_bytes(w as u32, h as u32, PixelFormat::Gray8, data).unwrap()
+    };
+    let (noisy_l, noisy_r) = (noisy(&clean_l), noisy(&clean_r));
+    let o = StereoOptions {
+        noise_adaptive_penalties: true,
+        ..opts(16)
+    };
+    let clean = run(&clean_l, &clean_r, &o);
+    assert_eq!(clean.stats.penalty_scale, 1.0);
+    let floor = clean.stats.match_cost_floor.expect("measured");
+    assert!(floor < noise::CLEAN_MATCH_COST, "clean floor {floor}");
+
+    let adapted = run(&noisy_l, &noisy_r, &o);
+    let floor = adapted.stats.match_cost_floor.expect("measured");
+    assert!(floor > noise::CLEAN_MATCH_COST, "noisy floor {floor}");
+    assert!(
+        adapted.stats.penalty_scale > 1.2,
+        "{}",
+        adapted.stats.penalty_scale
+    );
+    let fixed = run(
+        &noisy_l,
+        &noisy_r,
+        &StereoOptions {
+            noise_adaptive_penalties: false,
+            ..o.clone()
+        },
+    );
+    assert_eq!(fixed.stats.penalty_scale, 1.0);
+    assert_eq!(fixed.stats.match_cost_floor, None);
+    // The stronger smoothness pays off on the noisy pair.
+    let (e_adapted, e_fixed) = (
+        mean_error(&adapted.disparity, 12, |_, _| d),
+        mean_error(&fixed.disparity, 12, |_, _| d),
+    );
+    assert!(
+        e_adapted < e_fixed,
+        "adapted {e_adapted} vs fixed {e_fixed}"
+    );
+}
