@@ -404,20 +404,7 @@ fn step<const ASSIGN: bool>(
     let blocks = k / LANES * LANES;
     let mut best = [u16::MAX; LANES];
     for b in (0..blocks).step_by(LANES) {
-        let c: &[u8; LANES] = cost[b..b + LANES].try_into().unwrap_or(&[0; LANES]);
-        let lower: &[u16; LANES] = prev[b..b + LANES].try_into().unwrap_or(&[0; LANES]);
-        let same: &[u16; LANES] = prev[b + 1..b + 1 + LANES].try_into().unwrap_or(&[0; LANES]);
-        let upper: &[u16; LANES] = prev[b + 2..b + 2 + LANES].try_into().unwrap_or(&[0; LANES]);
-        let mut v = [0u16; LANES];
-        for i in 0..LANES {
-            let t = same[i]
-                .min(lower[i].saturating_add(p1))
-                .min(upper[i].saturating_add(p1))
-                .min(jump);
-            // t ≥ minprev (minprev is the minimum of prev's window), so this cannot wrap.
-            v[i] = (c[i] as u16).saturating_add(t - minprev);
-            best[i] = best[i].min(v[i]);
-        }
+        let v = block(cost, prev, b, minprev, p1, jump, &mut best);
         out[b..b + LANES].copy_from_slice(&v);
         for (s, v) in sum[b..b + LANES].iter_mut().zip(v) {
             *s = if ASSIGN { v } else { s.saturating_add(v) };
@@ -431,19 +418,7 @@ fn step<const ASSIGN: bool>(
         // as much as two blocks (the coarse level's and a full search's `k` are rarely multiples
         // of 16).
         let b = k - LANES;
-        let c: &[u8; LANES] = cost[b..k].try_into().unwrap_or(&[0; LANES]);
-        let lower: &[u16; LANES] = prev[b..b + LANES].try_into().unwrap_or(&[0; LANES]);
-        let same: &[u16; LANES] = prev[b + 1..b + 1 + LANES].try_into().unwrap_or(&[0; LANES]);
-        let upper: &[u16; LANES] = prev[b + 2..b + 2 + LANES].try_into().unwrap_or(&[0; LANES]);
-        let mut v = [0u16; LANES];
-        for i in 0..LANES {
-            let t = same[i]
-                .min(lower[i].saturating_add(p1))
-                .min(upper[i].saturating_add(p1))
-                .min(jump);
-            v[i] = (c[i] as u16).saturating_add(t - minprev);
-            best[i] = best[i].min(v[i]);
-        }
+        let v = block(cost, prev, b, minprev, p1, jump, &mut best);
         out[b..k].copy_from_slice(&v);
         let new_from = LANES - tail;
         for (i, (s, v)) in sum[b..k].iter_mut().zip(v).enumerate() {
@@ -470,6 +445,35 @@ fn step<const ASSIGN: bool>(
         best = best.min(v);
     }
     best
+}
+
+/// The recurrence (eq. 3.3) for the `LANES` disparities from index `b` of a [`step`]: the new
+/// path costs, each also folded into `best`.
+#[inline(always)]
+fn block(
+    cost: &[u8],
+    prev: &[u16],
+    b: usize,
+    minprev: u16,
+    p1: u16,
+    jump: u16,
+    best: &mut [u16; LANES],
+) -> [u16; LANES] {
+    let c: &[u8; LANES] = cost[b..b + LANES].try_into().unwrap_or(&[0; LANES]);
+    let lower: &[u16; LANES] = prev[b..b + LANES].try_into().unwrap_or(&[0; LANES]);
+    let same: &[u16; LANES] = prev[b + 1..b + 1 + LANES].try_into().unwrap_or(&[0; LANES]);
+    let upper: &[u16; LANES] = prev[b + 2..b + 2 + LANES].try_into().unwrap_or(&[0; LANES]);
+    let mut v = [0u16; LANES];
+    for i in 0..LANES {
+        let t = same[i]
+            .min(lower[i].saturating_add(p1))
+            .min(upper[i].saturating_add(p1))
+            .min(jump);
+        // t ≥ minprev (minprev is the minimum of prev's window), so this cannot wrap.
+        v[i] = (c[i] as u16).saturating_add(t - minprev);
+        best[i] = best[i].min(v[i]);
+    }
+    v
 }
 
 #[cfg(test)]
