@@ -75,7 +75,8 @@ pub struct StereoStats {
     /// `stereo.coarse`, the half-size level's own steps as `stereo.coarse.cost`, … (parts of
     /// `stereo.coarse`), `stereo.align` (measuring and undoing the residual misalignment),
     /// `stereo.cost` (census transform; per-row costs are computed inside aggregation and
-    /// counted there), `stereo.aggregate`, `stereo.decide`, `stereo.speckle`, `stereo.refine`,
+    /// counted there), `stereo.noise` (the matches' cost floor, with `noise_adaptive_penalties`),
+    /// `stereo.aggregate`, `stereo.decide`, `stereo.speckle`, `stereo.refine`,
     /// `stereo.fill`, `stereo.smooth`. Steps that did not run are absent.
     pub timings: Vec<(String, f64)>,
     /// Total matching time, milliseconds (decoded images in, disparity out).
@@ -267,7 +268,9 @@ pub(crate) fn match_grey(
     // their balance with the data term (census, measured at the half-size level's disparities).
     let penalty_scale = match (&coarse, o.noise_adaptive_penalties, o.cost) {
         (Some(coarse), true, CostKind::Census) => {
-            let floor = noise::match_cost_floor(cost.as_ref(), coarse);
+            let floor = stats.time("stereo.noise", || {
+                noise::match_cost_floor(cost.as_ref(), coarse)
+            });
             stats.match_cost_floor = floor;
             floor.map_or(1.0, noise::penalty_scale)
         }

@@ -539,6 +539,14 @@ fn penalties_grow_with_the_noise_of_the_pair_and_stay_for_a_clean_one() {
         "{}",
         adapted.stats.penalty_scale
     );
+    let stages = |d: &Disparity| -> Vec<String> {
+        d.stats
+            .timings
+            .iter()
+            .map(|(name, _)| name.clone())
+            .collect()
+    };
+    assert!(stages(&adapted).contains(&"stereo.noise".to_string()));
     let fixed = run(
         &noisy_l,
         &noisy_r,
@@ -549,6 +557,7 @@ fn penalties_grow_with_the_noise_of_the_pair_and_stay_for_a_clean_one() {
     );
     assert_eq!(fixed.stats.penalty_scale, 1.0);
     assert_eq!(fixed.stats.match_cost_floor, None);
+    assert!(!stages(&fixed).contains(&"stereo.noise".to_string()));
     // The stronger smoothness pays off on the noisy pair.
     let (e_adapted, e_fixed) = (
         mean_error(&adapted.disparity, 12, |_, _| d),
