@@ -35,16 +35,15 @@ pub fn match_cost_floor(cost: &dyn CostRows, coarse: &Raster<f32>) -> Option<f32
         return None;
     }
     let mut costs: Vec<u8> = (0..h)
+        .into_par_iter()
         .step_by(SAMPLE_STEP)
-        .collect::<Vec<_>>()
-        .par_iter()
-        .flat_map_iter(|&y| {
+        .flat_map_iter(|y| {
             let cy = (y / 2).min(ch - 1);
             // Disparities that leave the right view (or are missing) are not sampled.
             let (bases, usable): (Vec<u16>, Vec<bool>) = (0..w)
                 .map(|x| {
                     let d = 2.0 * *coarse.get((x / 2).min(cw - 1), cy);
-                    if d.is_finite() && d >= 0.0 && d.round() <= x as f32 {
+                    if d.is_finite() && d >= 0.0 && d.round() <= (x as f32).min(u16::MAX as f32) {
                         (d.round() as u16, true)
                     } else {
                         (0, false)

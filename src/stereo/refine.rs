@@ -403,7 +403,13 @@ fn lane_sum<const NC: usize>(a: &[f32; NC]) -> f32 {
     v[0]
 }
 
-/// Inputs of the local fit of [`refine_locally`]. The three images are rows of `stride` values
+/// `NC` values of a padded image from index `at` (`None` past its end).
+#[inline(always)]
+fn lanes<const NC: usize>(image: &[f32], at: usize) -> Option<[f32; NC]> {
+    image.get(at..at + NC)?.try_into().ok()
+}
+
+/// Inputs of the local fit of [`refine_locally`]. The five images are rows of `stride` values
 /// with [`PAD`] zeros on each side.
 struct LocalFit<'a> {
     width: usize,
@@ -606,8 +612,11 @@ impl LocalFit<'_> {
         let mut acc = [[0f32; NC]; 3];
         for j in 0..win.rows {
             let at = (y0 + j) * self.stride + PAD + x0;
-            let lanes = |v: &[f32]| -> Option<[f32; NC]> { v.get(at..at + NC)?.try_into().ok() };
-            let (row, rise, fall) = (lanes(self.left)?, lanes(self.rise)?, lanes(self.fall)?);
+            let (row, rise, fall) = (
+                lanes::<NC>(self.left, at)?,
+                lanes::<NC>(self.rise, at)?,
+                lanes::<NC>(self.fall, at)?,
+            );
             let [sw, sl, sll] = &mut acc;
             for i in 0..NC {
                 let v = row[i] - centre;
@@ -643,14 +652,11 @@ impl LocalFit<'_> {
         let mut acc = [[0f32; NC]; 9];
         for j in 0..win.rows {
             let at = (win.y0 + j) * self.stride + start;
-            let lanes = |v: &[f32], from: usize| -> Option<[f32; NC]> {
-                v.get(from..from + NC)?.try_into().ok()
-            };
             let (r0, r1, g0, g1) = (
-                lanes(self.right, at)?,
-                lanes(self.right, at + 1)?,
-                lanes(self.grad, at)?,
-                lanes(self.grad, at + 1)?,
+                lanes::<NC>(self.right, at)?,
+                lanes::<NC>(self.right, at + 1)?,
+                lanes::<NC>(self.grad, at)?,
+                lanes::<NC>(self.grad, at + 1)?,
             );
             let (wj, lj, wlj) = (&win.weight[j], &win.value[j], &win.weighted[j]);
             let [sr, sg, srr, sgg, slg, srg, sw, sl, sll] = &mut acc;
