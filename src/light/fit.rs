@@ -21,7 +21,11 @@
 //! photo) and the camera does not (in the frame, in front of what the photo shows there, it would
 //! be in the photo, where no source was detected). Each
 //! candidate is scored by the relative RMS residual plus the disagreement between the predicted
-//! cast shadow (the part of the light hidden from a sample) and the shadow mask. The best of each
+//! cast shadow (the part of the direct light hidden from a sample: of the candidate's, and of the
+//! in-view lights' with it at their fitted intensities, since the mask shows every light's
+//! shadows and where two lights reach a surface the shadow of one is only as dark as its share)
+//! and the shadow mask; the in-view lights alone, the baseline a candidate must improve on, are
+//! scored the same way. The best of each
 //! kind is then refined: a direction over a set four times as dense around it; a position by a
 //! pattern search over its three coordinates (a step along either tangent of its direction and its
 //! distance scaled by a factor, the step halved and the factor square-rooted when no step
@@ -201,6 +205,10 @@ const POINT_REFINE_MAX_ROUNDS: usize = 100;
 /// directional one.
 const POINT_DIRECTION_DIVISOR: usize = 4;
 
+/// A sample faces a light for the shadow comparison when the cosine towards it exceeds this: at
+/// grazing angles the light's share of the shading, and so its shadow, is too faint to judge.
+const FACING_COSINE: f32 = 0.15;
+
 /// Largest relative residual of a fit that is still taken as an inference of the light.
 const MAX_EXPLAINED_RESIDUAL: f64 = 0.5;
 
@@ -304,34 +312,51 @@ fn body(light: &Light) -> Option<(Vec3, f32)> {
     (light.kind != LightKind::Directional).then(|| (Vec3::from(light.position), light.body_reach()))
 }
 
-/// Geometric term of a light at a sample, cast shadows included.
-fn term(light: &Light, s: &Sample, occluders: &Occluders, reach: f32) -> f32 {
+/// A light's geometric term at a sample with its cast shadows and without, and whether the
+/// sample faces it enough to judge its shadow (cos > [`FACING_COSINE`]).
+fn terms(light: &Light, s: &Sample, occluders: &Occluders, reach: f32) -> (f32, f32, bool) {
     match geometry(light, s, reach) {
-        Some((shade, l, max_dist)) if visible(occluders, s.p, s.n, l, max_dist, body(light)) => {
-            shade
+        Some((shade, l, max_dist)) => {
+            let lit = visible(occluders, s.p, s.n, l, max_dist, body(light));
+            (
+                if lit { shade } else { 0.0 },
+                shade,
+                s.n.dot(l) > FACING_COSINE,
+            )
         }
-        _ => 0.0,
+        None => (0.0, 0.0, false),
     }
 }
 
-/// Mean disagreement between the shadow a light predicts on each sample (the part of it hidden
-/// from the sample: 1 − lit ÷ unoccluded term, from `lit_open`) and the mask, over the samples
-/// facing the light (cos > 0.15 towards `towards(sample)`), as a fraction of all samples.
+/// Mean disagreement between the predicted shadow on each sample and the mask, over the samples
+/// facing a light (cos > 0.15: towards `towards(sample)` for the candidate light, whose lit and
+/// unoccluded terms are `lit_open`), as a fraction of all samples. The predicted shadow is the
+/// part of the direct light hidden from the sample: of the candidate's alone (1 − lit ÷
+/// unoccluded) when no other light reaches the sample; with other lights (`others`: their direct
+/// light on each sample facing them, lit and unoccluded, at their fitted intensities; the
+/// candidate's intensity is `weight`), of the sum. The mask shows every light's shadows, and
+/// where two lights reach a surface, the shadow of one is only as dark as that light's share.
 fn shadow_disagreement(
     samples: &[Sample],
     lit_open: &[(f32, f32, f32)],
+    others: &[(f32, f32)],
+    weight: f32,
     towards: impl Fn(&Sample) -> Vec3,
 ) -> f64 {
     let sum: f64 = samples
         .iter()
         .zip(lit_open)
-        .map(|(s, (lit, open, _))| {
-            if *open > 0.0 && s.n.dot(towards(s)) > 0.15 {
-                let predicted = 1.0 - (lit / open).clamp(0.0, 1.0);
-                (predicted - s.mask).abs() as f64
-            } else {
-                0.0
-            }
+        .zip(others)
+        .map(|((s, (lit, open, _)), (other_lit, other_open))| {
+            let faces = *open > 0.0 && s.n.dot(towards(s)) > FACING_COSINE;
+            let (lit, open) = match (faces, *other_open > 0.0) {
+                (_, false) if faces => (*lit, *open),
+                (_, false) => return 0.0,
+                (true, true) => (weight * lit + other_lit, weight * open + other_open),
+                (false, true) => (*other_lit, *other_open),
+            };
+            let predicted = 1.0 - (lit / open).clamp(0.0, 1.0);
+            (predicted - s.mask).abs() as f64
         })
         .sum();
     sum / samples.len().max(1) as f64
@@ -692,20 +717,21 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         sigma_w: depth_noise(inputs.depth),
     };
 
-    // Columns of the in-view lights (fixed positions).
-    let fixed: Vec<Vec<f32>> = in_view
+    // Each in-view light's term per sample with and without cast shadows (its column is the
+    // former), and whether the sample faces it enough to judge its shadow.
+    let fixed: Vec<Vec<(f32, f32, bool)>> = in_view
         .iter()
         .map(|l| {
             samples
                 .par_iter()
-                .map(|s| term(l, s, &occluders, reach))
+                .map(|s| terms(l, s, &occluders, reach))
                 .collect()
         })
         .collect();
     let build = |extra: Option<&Vec<f32>>| -> Vec<Vec<f32>> {
         (0..samples.len())
             .map(|i| {
-                let mut row: Vec<f32> = fixed.iter().map(|c| c[i]).collect();
+                let mut row: Vec<f32> = fixed.iter().map(|c| c[i].0).collect();
                 if let Some(e) = extra {
                     row.push(e[i]);
                 }
@@ -752,9 +778,38 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         return Ok(fallback(samples.len()));
     }
 
-    // Baseline: ambient plus the in-view lights.
+    // The in-view lights' direct light on each sample facing them, at intensities `x` (their
+    // first entries), with and without their cast shadows: their part of the predicted shadows.
+    let in_view_direct = |x: &[f64]| -> Vec<(f32, f32)> {
+        (0..samples.len())
+            .map(|i| {
+                fixed
+                    .iter()
+                    .zip(x)
+                    .filter(|(c, _)| c[i].2)
+                    .fold((0.0, 0.0), |(lit, open), (c, x)| {
+                        (lit + c[i].0 * *x as f32, open + c[i].1 * *x as f32)
+                    })
+            })
+            .collect()
+    };
+    // Baseline: ambient plus the in-view lights, scored like a candidate (their shadows against
+    // the mask; none without in-view lights).
     let baseline = alternate(&build(None), &luma, &regions, n_regions, options.albedo);
     let has_mask = inputs.shadow_mask.is_some();
+    let baseline_score = if has_mask && !in_view.is_empty() {
+        let no_candidate = vec![(0.0, 0.0, 0.0); samples.len()];
+        let disagreement = shadow_disagreement(
+            &samples,
+            &no_candidate,
+            &in_view_direct(&baseline.x),
+            0.0,
+            |_| Vec3::ZERO,
+        );
+        baseline.residual + options.shadow_weight as f64 * disagreement
+    } else {
+        baseline.residual
+    };
     // The out-of-view light seen from the insertion point: towards `d` at `distance` metres, or
     // infinitely far (a directional light).
     let candidate_light = |d: Vec3, distance: Option<f32>| match distance {
@@ -799,12 +854,16 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             n_regions,
             options.albedo,
         );
-        // Predicted cast shadow (the part of the cone hidden from the sample) against the mask on
-        // the samples facing the light, as a fraction of all samples (ambient alone, facing
-        // nothing, disagrees nowhere).
+        // Predicted cast shadow (the part of the direct light hidden from the sample) against
+        // the mask on the samples facing a light, as a fraction of all samples (ambient alone,
+        // facing nothing, disagrees nowhere).
         let disagreement = if has_mask {
             let axis_light = candidate_light(cone[0], distance);
-            shadow_disagreement(&samples, &per_sample, |s| axis_light.towards(s.p).0)
+            let others = in_view_direct(&fit.x);
+            let weight = fit.x[in_view.len()] as f32;
+            shadow_disagreement(&samples, &per_sample, &others, weight, |s| {
+                axis_light.towards(s.p).0
+            })
         } else {
             0.0
         };
@@ -936,7 +995,6 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         }
     }
     let (score, size_deg, disagreement, column) = best_size;
-    let baseline_score = baseline.residual;
     // A light that leaves half of the shading unexplained is not an inference.
     let keep_fitted = score < baseline_score * (1.0 - options.min_improvement as f64)
         && score < MAX_EXPLAINED_RESIDUAL;
@@ -1188,7 +1246,7 @@ mod tests {
             region: 0,
             mask: 0.0,
         };
-        let shade = term(&bulb, &floor, &occluders, 10.0);
+        let shade = terms(&bulb, &floor, &occluders, 10.0).0;
         assert!((shade - 1.0).abs() < 1e-4, "{shade}");
         // The wall around and behind the bulb sees it past the bulb's own front surface.
         for k in 0..8 {
@@ -1198,7 +1256,7 @@ mod tests {
                 n: Vec3::Z,
                 ..floor
             };
-            assert!(term(&bulb, &wall, &occluders, 10.0) > 0.0, "{}", wall.p);
+            assert!(terms(&bulb, &wall, &occluders, 10.0).0 > 0.0, "{}", wall.p);
         }
         // A point behind the wall is still shadowed by it.
         let behind = Sample {
@@ -1206,7 +1264,7 @@ mod tests {
             n: Vec3::Z,
             ..floor
         };
-        assert_eq!(term(&bulb, &behind, &occluders, 10.0), 0.0);
+        assert_eq!(terms(&bulb, &behind, &occluders, 10.0).0, 0.0);
     }
 
     #[test]
@@ -1224,11 +1282,20 @@ mod tests {
         // (lit, unoccluded, facing cosine) per sample.
         let lit_open = [(0.8, 0.8, 1.0), (0.0, 0.8, 1.0), (0.4, 0.8, 1.0)];
         // Agreement on the first two; the third is half hidden against an unshadowed mask.
-        let d = shadow_disagreement(&samples, &lit_open, |_| Vec3::Y);
+        let d = shadow_disagreement(&samples, &lit_open, &[(0.0, 0.0); 3], 1.0, |_| Vec3::Y);
         assert!((d - 0.5 / 3.0).abs() < 1e-6, "{d}");
         // Samples facing away from the light do not count.
-        let d = shadow_disagreement(&samples, &lit_open, |_| -Vec3::Y);
+        let d = shadow_disagreement(&samples, &lit_open, &[(0.0, 0.0); 3], 1.0, |_| -Vec3::Y);
         assert_eq!(d, 0.0);
+        // Another light as strong, seen by every sample: the candidate's shadow is half as dark
+        // (second: 0.5 against 1; third: 0.25 against 0).
+        let others = [(0.8, 0.8); 3];
+        let d = shadow_disagreement(&samples, &lit_open, &others, 1.0, |_| Vec3::Y);
+        assert!((d - 0.75 / 3.0).abs() < 1e-6, "{d}");
+        // Facing away from the candidate, the samples are judged by the other light alone, which
+        // casts no shadow on them.
+        let d = shadow_disagreement(&samples, &lit_open, &others, 1.0, |_| -Vec3::Y);
+        assert!((d - 1.0 / 3.0).abs() < 1e-6, "{d}");
     }
 
     /// What lights [`room_lit`]: a sun towards a direction, or a bulb at a position.
@@ -1244,6 +1311,12 @@ mod tests {
 
     /// The room of [`Room`] lit by `lit` of `strength` (a sun's irradiance, a bulb's intensity).
     fn room_lit(lit: Lit, ambient: f32, strength: f32) -> Room {
+        room_lit_by(&[(lit, strength)], ambient)
+    }
+
+    /// The room of [`Room`] lit by several lights, each with its strength. Its shadow mask is the
+    /// part of the direct light hidden from each surface.
+    fn room_lit_by(lights: &[(Lit, f32)], ambient: f32) -> Room {
         let (w, h) = (160, 120);
         let camera = Camera::from_focal(120.0, w, h).unwrap();
         let (lo, hi) = (Vec3::new(-0.5, -1.0, -4.3), Vec3::new(0.3, -0.2, -3.5));
@@ -1284,25 +1357,27 @@ mod tests {
                 };
                 let p = d * t;
                 let texture = 0.85 + 0.15 * ((p.x * 7.0).sin() * (p.z * 5.0).cos()).abs();
-                let (l, dist, falloff) = match lit {
-                    Lit::Sun(to_light) => (to_light.normalize(), f32::INFINITY, 1.0),
-                    Lit::Bulb(at) => {
-                        let r = at.distance(p);
-                        ((at - p) / r, r, 1.0 / (r * r))
+                let (mut e, mut open) = (0.0, 0.0);
+                for (lit, strength) in lights {
+                    let (l, dist, falloff) = match *lit {
+                        Lit::Sun(to_light) => (to_light.normalize(), f32::INFINITY, 1.0),
+                        Lit::Bulb(at) => {
+                            let r = at.distance(p);
+                            ((at - p) / r, r, 1.0 / (r * r))
+                        }
+                    };
+                    let unoccluded = strength * falloff * n.dot(l).max(0.0);
+                    open += unoccluded;
+                    if trace(p + n * 1e-3, l).is_none_or(|(t, _, _)| t >= dist) {
+                        e += unoccluded;
                     }
-                };
-                let lit = trace(p + n * 1e-3, l).is_none_or(|(t, _, _)| t >= dist);
-                let e = if lit {
-                    strength * falloff * n.dot(l).max(0.0)
-                } else {
-                    0.0
-                };
+                }
                 let v =
                     albedo * texture / std::f32::consts::PI * (e + std::f32::consts::PI * ambient);
                 *photo.get_mut(x, y) = [v, v * 0.95, v * 0.9];
                 *depth.get_mut(x, y) = -p.z;
                 *normals.get_mut(x, y) = n.to_array();
-                *shadow.get_mut(x, y) = if !lit && n.dot(l) > 0.0 { 1.0 } else { 0.0 };
+                *shadow.get_mut(x, y) = if open > 0.0 { 1.0 - e / open } else { 0.0 };
             }
         }
         Room {
@@ -1377,6 +1452,36 @@ mod tests {
         // The room's photo is tinted; the fitted light is neutral all the same.
         let [r, g, b] = fit.main.intensity;
         assert!(r == g && g == b, "{:?}", fit.main.intensity);
+    }
+
+    #[test]
+    fn finds_an_out_of_view_sun_beside_a_lamp_in_view() {
+        // A lamp in the frame (left, in front of the back wall) and a sun from above the frame,
+        // both casting shadows of the boxes, the sun the stronger at the boxes. The mask holds
+        // both lights' shadows (each as dark as its light's share); the candidate sun is judged
+        // against it together with the lamp, and the lamp alone is judged against it too. When
+        // each candidate was judged alone and the lamp not at all, the sun came out a quarter
+        // of the lamp's strength and the lamp became the main light.
+        let lamp = Vec3::new(-1.2, -0.3, -4.8);
+        let to_sun = Vec3::new(0.6, 1.0, 0.4);
+        let r = room_lit_by(&[(Lit::Bulb(lamp), 2.0), (Lit::Sun(to_sun), 2.0)], 0.1);
+        let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
+        let in_view = [Light::point(lamp.to_array(), 0.1, [2.0; 3])];
+        assert!(r.camera.project_to_pixel(lamp).is_some());
+        let fit = fit_lights(
+            &inputs(&r, &regions, Some(&r.shadow)),
+            &in_view,
+            &Default::default(),
+        )
+        .unwrap();
+        assert!(!fit.fallback_used);
+        assert_eq!(fit.lights.len(), 2, "{fit:?}");
+        assert_eq!(fit.main.kind, LightKind::Directional, "{fit:?}");
+        let error = (-Vec3::from(fit.main.direction))
+            .angle_between(to_sun.normalize())
+            .to_degrees();
+        // The target for a light out of view (15° for the sun alone above).
+        assert!(error < 20.0, "{fit:?}: {error}°");
     }
 
     #[test]
