@@ -19,7 +19,6 @@
 use rayon::prelude::*;
 
 use super::refine::PixelState;
-use super::simd::exp_neg;
 use crate::image::Raster;
 
 /// Disparity difference between a hole's two row neighbours above which the hole is taken to sit
@@ -279,13 +278,20 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
 pub struct SmoothOptions {
     /// Number of cascaded passes (tap spacing 1, 2, 4, …).
     pub passes: u32,
-    /// Grey-level scale of the image-difference weight.
+    /// Grey-level scale of the image-difference weight; at least [`MIN_SIGMA_INTENSITY`] (a
+    /// smaller value is taken as that).
     pub sigma_intensity: f32,
     /// Neighbours whose disparity differs by more than this (pixels) do not contribute.
     pub max_jump: f32,
     /// Weight of pixels on Canny edges (the rest weigh 1).
     pub edge_weight: f32,
 }
+
+/// Smallest grey-level scale of the smoothing's image-difference weight. The weight
+/// `e^(−|ΔI|/σ)` is computed as the smaller of two products of `e^(±I/σ)` per pixel, which stay
+/// within `f32`'s normal range over 256 grey levels only for σ above 255/87 ≈ 2.9; with σ = 4 the
+/// weight of a neighbour 1 grey level away is already 0.78, so nothing finer is lost.
+pub const MIN_SIGMA_INTENSITY: f32 = 4.0;
 
 /// Edge-aware cascaded smoothing of a dense disparity map (see the module documentation).
 pub fn smooth(
@@ -299,50 +305,72 @@ pub fn smooth(
     }
     let (w, h) = (disparity.width(), disparity.height());
     let edges = canny(guide, 10.0, 30.0);
-    let reliability: Vec<f32> = confidence
+    // The grey-level weight of a neighbour q of p is `e^(−|I_q − I_p|/σ)`, the smaller of
+    // `e^(I_q/σ)·e^(−I_p/σ)` and `e^(−I_q/σ)·e^(I_p/σ)`: two products instead of an
+    // exponential per neighbour and pass. Each neighbour's reliability (its confidence, less on
+    // edges) is folded into its two factors.
+    let sigma = if opts.sigma_intensity >= MIN_SIGMA_INTENSITY {
+        opts.sigma_intensity
+    } else {
+        MIN_SIGMA_INTENSITY
+    };
+    let rise_of: [f32; 256] = std::array::from_fn(|v| (v as f32 / sigma).exp());
+    let fall_of: [f32; 256] = std::array::from_fn(|v| (-(v as f32) / sigma).exp());
+    let (reliable_rise, reliable_fall): (Vec<f32>, Vec<f32>) = confidence
         .pixels()
         .par_iter()
         .zip(edges.par_iter())
-        .map(|(&c, &e)| c.max(0.02) * if e { opts.edge_weight } else { 1.0 })
-        .collect();
+        .zip(guide.pixels().par_iter())
+        .map(|((&c, &e), &g)| {
+            let reliability = c.max(0.02) * if e { opts.edge_weight } else { 1.0 };
+            (
+                reliability * rise_of[g as usize],
+                reliability * fall_of[g as usize],
+            )
+        })
+        .unzip();
     let taps = [0.25f32, 0.5, 0.25];
-    let inv_sigma = 1.0 / opts.sigma_intensity.max(1e-3);
     let mut src = disparity.pixels().to_vec();
     let mut dst = vec![0f32; w * h];
     for pass in 0..opts.passes {
         let spacing = 1isize << pass.min(10);
         let prev = &src;
         dst.par_chunks_mut(w).enumerate().for_each_init(
-            || (vec![0f32; w], vec![0f32; w]),
-            |(sum, weight), (y, out)| {
+            || (vec![0f32; w], vec![0f32; w], vec![0f32; w], vec![0f32; w]),
+            |(sum, weight, rise, fall), (y, out)| {
                 sum.fill(0.0);
                 weight.fill(0.0);
+                for ((r, f), &g) in rise.iter_mut().zip(fall.iter_mut()).zip(guide.row(y)) {
+                    *r = rise_of[g as usize];
+                    *f = fall_of[g as usize];
+                }
                 let centre = &prev[y * w..(y + 1) * w];
-                let grey = guide.row(y);
                 // Tap by tap over the whole row: no bounds logic in the inner loop.
                 for (j, ty) in taps.iter().enumerate() {
                     let qy = y as isize + (j as isize - 1) * spacing;
                     if qy < 0 || qy >= h as isize {
                         continue;
                     }
-                    let qy = qy as usize;
-                    let (drow, grow) = (&prev[qy * w..(qy + 1) * w], guide.row(qy));
-                    let rrow = &reliability[qy * w..(qy + 1) * w];
+                    let row = qy as usize * w..(qy as usize + 1) * w;
+                    let (drow, rrow, frow) = (
+                        &prev[row.clone()],
+                        &reliable_rise[row.clone()],
+                        &reliable_fall[row],
+                    );
                     for (i, tx) in taps.iter().enumerate() {
                         let dx = (i as isize - 1) * spacing;
                         let lo = (-dx).max(0) as usize;
                         let hi = (w as isize - dx.max(0)).max(lo as isize) as usize;
-                        let t = tx * ty;
                         let q0 = (lo as isize + dx) as usize;
                         let n = hi - lo;
                         let tap = Tap {
                             centre: &centre[lo..hi],
-                            grey: &grey[lo..hi],
+                            centre_rise: &rise[lo..hi],
+                            centre_fall: &fall[lo..hi],
                             disparity: &drow[q0..q0 + n],
-                            guide: &grow[q0..q0 + n],
-                            reliability: &rrow[q0..q0 + n],
-                            inv_sigma,
-                            weight: t,
+                            reliable_rise: &rrow[q0..q0 + n],
+                            reliable_fall: &frow[q0..q0 + n],
+                            weight: tx * ty,
                             max_jump: opts.max_jump,
                         };
                         add_tap_fast(&tap, &mut sum[lo..hi], &mut weight[lo..hi]);
@@ -361,12 +389,13 @@ pub fn smooth(
 /// One tap of a smoothing pass over a run of pixels: the centres' values and the neighbours'.
 struct Tap<'a> {
     centre: &'a [f32],
-    grey: &'a [u8],
+    /// `e^(I/σ)` and `e^(−I/σ)` of the centres' grey levels.
+    centre_rise: &'a [f32],
+    centre_fall: &'a [f32],
     disparity: &'a [f32],
-    guide: &'a [u8],
-    reliability: &'a [f32],
-    /// 1 / σ_I of the grey-level weight.
-    inv_sigma: f32,
+    /// The same of the neighbours' grey levels, times their reliability.
+    reliable_rise: &'a [f32],
+    reliable_fall: &'a [f32],
     weight: f32,
     max_jump: f32,
 }
@@ -376,19 +405,19 @@ crate::avx2_variant!(fn add_tap_fast<'a, 'b>(tap: &'b Tap<'a>, sum: &'b mut [f32
 /// Adds the tap's weighted neighbours into `sum` and their weights into `weight`.
 #[inline(always)]
 fn add_tap(tap: &Tap<'_>, sum: &mut [f32], weight: &mut [f32]) {
-    for ((((((s, wt), &dp), &ip), &dq), &gq), &rq) in sum
+    for (((((((s, wt), &dp), &rise_p), &fall_p), &dq), &rise_q), &fall_q) in sum
         .iter_mut()
         .zip(weight.iter_mut())
         .zip(tap.centre)
-        .zip(tap.grey)
+        .zip(tap.centre_rise)
+        .zip(tap.centre_fall)
         .zip(tap.disparity)
-        .zip(tap.guide)
-        .zip(tap.reliability)
+        .zip(tap.reliable_rise)
+        .zip(tap.reliable_fall)
     {
         // Branch-free: a neighbour across a disparity jump weighs 0.
         let near = ((dq - dp).abs() <= tap.max_jump) as u32 as f32;
-        let similarity = exp_neg((gq as i32 - ip as i32).abs() as f32 * tap.inv_sigma);
-        let wq = near * tap.weight * rq * similarity;
+        let wq = near * tap.weight * (rise_q * fall_p).min(fall_q * rise_p);
         *s += wq * dq;
         *wt += wq;
     }
@@ -502,6 +531,93 @@ mod tests {
         assert!(canny(&Raster::filled(8, 8, 77u8), 10.0, 30.0)
             .iter()
             .all(|e| !e));
+    }
+
+    /// [`smooth`] written plainly: every neighbour of every pixel, its weight with `exp`.
+    fn smooth_plainly(
+        disparity: &Raster<f32>,
+        confidence: &Raster<f32>,
+        guide: &Raster<u8>,
+        opts: &SmoothOptions,
+    ) -> Raster<f32> {
+        let (w, h) = (disparity.width(), disparity.height());
+        let edges = canny(guide, 10.0, 30.0);
+        let sigma = opts.sigma_intensity.max(MIN_SIGMA_INTENSITY);
+        let mut d = disparity.clone();
+        for pass in 0..opts.passes {
+            let spacing = 1isize << pass;
+            let prev = d.clone();
+            for y in 0..h as isize {
+                for x in 0..w as isize {
+                    let dp = *prev.get(x as usize, y as usize);
+                    let ip = *guide.get(x as usize, y as usize) as f32;
+                    let (mut sum, mut total) = (0.0f32, 0.0f32);
+                    for (j, ty) in [0.25f32, 0.5, 0.25].iter().enumerate() {
+                        for (i, tx) in [0.25f32, 0.5, 0.25].iter().enumerate() {
+                            let qx = x + (i as isize - 1) * spacing;
+                            let qy = y + (j as isize - 1) * spacing;
+                            if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
+                                continue;
+                            }
+                            let (qx, qy) = (qx as usize, qy as usize);
+                            let dq = *prev.get(qx, qy);
+                            if (dq - dp).abs() > opts.max_jump {
+                                continue;
+                            }
+                            let edge = if edges[qy * w + qx] {
+                                opts.edge_weight
+                            } else {
+                                1.0
+                            };
+                            let reliability = confidence.get(qx, qy).max(0.02) * edge;
+                            let similarity =
+                                (-(*guide.get(qx, qy) as f32 - ip).abs() / sigma).exp();
+                            let weight = tx * ty * reliability * similarity;
+                            sum += weight * dq;
+                            total += weight;
+                        }
+                    }
+                    *d.get_mut(x as usize, y as usize) =
+                        if total > 1e-12 { sum / total } else { dp };
+                }
+            }
+        }
+        d
+    }
+
+    #[test]
+    fn smoothing_matches_the_plain_weighted_average() {
+        // Ramps, a step, texture, edges and low confidence; σ from well above the floor to
+        // below it (taken as the floor by both).
+        let (w, h) = (37, 23);
+        let guide = Raster::from_fn(w, h, |x, y| {
+            let base = if x < 18 { 40 } else { 200 };
+            (base + (x * 13 + y * 7) % 23) as u8
+        });
+        let disparity = Raster::from_fn(w, h, |x, y| {
+            let plane = if x < 18 { 10.0 } else { 25.0 };
+            plane + 0.05 * y as f32 + (((x * 31 + y * 17) % 11) as f32 - 5.0) * 0.1
+        });
+        let confidence = Raster::from_fn(w, h, |x, y| ((x + 2 * y) % 5) as f32 / 4.0);
+        for (sigma, passes) in [(12.0, 3), (5.0, 2), (1.0, 1)] {
+            let opts = SmoothOptions {
+                passes,
+                sigma_intensity: sigma,
+                max_jump: 1.5,
+                edge_weight: 0.2,
+            };
+            let want = smooth_plainly(&disparity, &confidence, &guide, &opts);
+            let mut got = disparity.clone();
+            smooth(&mut got, &confidence, &guide, &opts);
+            for (p, (g, e)) in got.pixels().iter().zip(want.pixels()).enumerate() {
+                assert!(
+                    (g - e).abs() <= 1e-4,
+                    "σ {sigma}, pixel ({}, {}): {g} vs {e}",
+                    p % w,
+                    p / w
+                );
+            }
+        }
     }
 
     #[test]
