@@ -47,6 +47,9 @@ impl VerticalResidual {
     /// the image replicated.
     pub fn apply(&self, right: &Raster<u8>) -> Raster<u8> {
         let (w, h) = (right.width(), right.height());
+        if w == 0 || h == 0 {
+            return right.clone();
+        }
         let mut out = vec![0u8; w * h];
         out.par_chunks_mut(w).enumerate().for_each_init(
             || vec![0f32; w],
@@ -410,6 +413,8 @@ mod tests {
                 ..Default::default()
             },
         ] {
+            // An empty view stays empty.
+            assert_eq!(m.apply(&Raster::filled(0, 3, 0u8)).width(), 0);
             let out = m.apply(&right);
             for y in 0..h {
                 for x in 0..w {
