@@ -300,10 +300,10 @@ pub fn smooth(
     guide: &Raster<u8>,
     opts: &SmoothOptions,
 ) {
-    if opts.passes == 0 {
+    let (w, h) = (disparity.width(), disparity.height());
+    if opts.passes == 0 || w == 0 || h == 0 {
         return;
     }
-    let (w, h) = (disparity.width(), disparity.height());
     let edges = canny(guide, 10.0, 30.0);
     // The grey-level weight of a neighbour q of p is `e^(−|I_q − I_p|/σ)`, the smaller of
     // `e^(I_q/σ)·e^(−I_p/σ)` and `e^(−I_q/σ)·e^(I_p/σ)`: two products instead of an
@@ -606,6 +606,16 @@ mod tests {
                 max_jump: 1.5,
                 edge_weight: 0.2,
             };
+            // An empty map stays empty.
+            let mut empty = Raster::filled(0, 4, 0.0f32);
+            let no_confidence = empty.clone();
+            smooth(
+                &mut empty,
+                &no_confidence,
+                &Raster::filled(0, 4, 0u8),
+                &opts,
+            );
+            assert_eq!(empty.width(), 0);
             let want = smooth_plainly(&disparity, &confidence, &guide, &opts);
             let mut got = disparity.clone();
             smooth(&mut got, &confidence, &guide, &opts);
