@@ -219,12 +219,17 @@ impl<'a> ImageView<'a> {
         for y in 0..self.height {
             let row = self.row(y);
             for px in row.chunks_exact(bpp) {
-                let [r, g, b] = encoded_rgb(self.format, px);
-                out.push(0.2126 * r + 0.7152 * g + 0.0722 * b);
+                out.push(rec709_luma(encoded_rgb(self.format, px)));
             }
         }
         Raster::from_vec(self.width as usize, self.height as usize, out)
     }
+}
+
+/// Rec. 709 luminance of RGB values, in their own units (linear or encoded).
+#[inline(always)]
+pub fn rec709_luma([r, g, b]: [f32; 3]) -> f32 {
+    0.2126 * r + 0.7152 * g + 0.0722 * b
 }
 
 /// An owned image with packed rows.

@@ -1,12 +1,11 @@
 //! Small image filters the estimators share: luminance, box blur (summed-area table), median,
 //! connected components. Non-finite input values are treated as 0 by every filter.
 
-use crate::image::Raster;
+use crate::image::{rec709_luma, Raster};
 
 /// Rec. 709 luminance of linear RGB; non-finite or negative channels count as 0.
 pub fn luminance(c: [f32; 3]) -> f32 {
-    let s = |v: f32| if v.is_finite() { v.max(0.0) } else { 0.0 };
-    0.2126 * s(c[0]) + 0.7152 * s(c[1]) + 0.0722 * s(c[2])
+    rec709_luma(c.map(|v| if v.is_finite() { v.max(0.0) } else { 0.0 }))
 }
 
 /// Mean over the `(2r+1)²` window clipped to the image, optionally counting only pixels where

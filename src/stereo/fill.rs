@@ -19,6 +19,7 @@
 use rayon::prelude::*;
 
 use super::refine::PixelState;
+use super::simd::GreyExponentials;
 use crate::image::Raster;
 
 /// Disparity difference between a hole's two row neighbours above which the hole is taken to sit
@@ -289,8 +290,8 @@ pub struct SmoothOptions {
 
 /// Smallest grey-level scale of the smoothing's image-difference weight. The weight
 /// `e^(−|ΔI|/σ)` is computed as the smaller of two products of `e^(±I/σ)` per pixel, which stay
-/// within `f32`'s normal range over 256 grey levels only for σ above 255/87 ≈ 2.9; with σ = 4 the
-/// weight of a neighbour 1 grey level away is already 0.78, so nothing finer is lost.
+/// within `f32`'s normal range only for σ above about 2.9; with σ = 4 the weight of a neighbour
+/// 1 grey level away is already 0.78, so nothing finer is lost.
 pub const MIN_SIGMA_INTENSITY: f32 = 4.0;
 
 /// Edge-aware cascaded smoothing of a dense disparity map (see the module documentation).
@@ -305,17 +306,18 @@ pub fn smooth(
         return;
     }
     let edges = canny(guide, 10.0, 30.0);
-    // The grey-level weight of a neighbour q of p is `e^(−|I_q − I_p|/σ)`, the smaller of
-    // `e^(I_q/σ)·e^(−I_p/σ)` and `e^(−I_q/σ)·e^(I_p/σ)`: two products instead of an
-    // exponential per neighbour and pass. Each neighbour's reliability (its confidence, less on
-    // edges) is folded into its two factors.
+    // The grey-level weight of a neighbour as products of per-pixel factors (GreyExponentials),
+    // instead of an exponential per neighbour and pass. Each neighbour's reliability (its
+    // confidence, less on edges) is folded into its two factors.
     let sigma = if opts.sigma_intensity >= MIN_SIGMA_INTENSITY {
         opts.sigma_intensity
     } else {
         MIN_SIGMA_INTENSITY
     };
-    let rise_of: [f32; 256] = std::array::from_fn(|v| (v as f32 / sigma).exp());
-    let fall_of: [f32; 256] = std::array::from_fn(|v| (-(v as f32) / sigma).exp());
+    let GreyExponentials {
+        rise: rise_of,
+        fall: fall_of,
+    } = GreyExponentials::new(sigma);
     let (reliable_rise, reliable_fall): (Vec<f32>, Vec<f32>) = confidence
         .pixels()
         .par_iter()

@@ -48,7 +48,7 @@ pub use options::{Aggregation, CostKind, Preset, StereoOptions, Subpixel};
 
 use crate::camera::StereoCalibration;
 use crate::error::{Error, Result};
-use crate::image::{ImageView, PixelFormat, Raster};
+use crate::image::{rec709_luma, ImageView, PixelFormat, Raster};
 use cost::CostRows;
 use refine::{DecideOptions, Decision, PixelState};
 
@@ -178,10 +178,7 @@ fn grey(view: &ImageView) -> Raster<u8> {
     out.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
         const S: f32 = 1.0 / 255.0;
         for (o, px) in out.iter_mut().zip(view.row(y as u32).chunks_exact(bytes)) {
-            let luma = 0.2126 * (px[r] as f32 * S)
-                + 0.7152 * (px[g] as f32 * S)
-                + 0.0722 * (px[b] as f32 * S);
-            *o = to_u8(luma);
+            *o = to_u8(rec709_luma([px[r], px[g], px[b]].map(|v| v as f32 * S)));
         }
     });
     Raster::from_vec(w, h, out)

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::options::Subpixel;
 use super::sgm::Aggregated;
+use super::simd::GreyExponentials;
 use crate::image::Raster;
 
 /// Why a pixel has no estimate (or that it has one).
@@ -281,8 +282,10 @@ pub fn refine_locally(
     // gradient (central differences, borders replicated) as `f32`, each row padded with zeros
     // so that a window of any disparity reads whole vectors.
     let stride = w + 2 * PAD;
-    let rise_of: [f32; 256] = std::array::from_fn(|v| (v as f32 / SIMILARITY_SCALE).exp());
-    let fall_of: [f32; 256] = std::array::from_fn(|v| (-(v as f32) / SIMILARITY_SCALE).exp());
+    let GreyExponentials {
+        rise: rise_of,
+        fall: fall_of,
+    } = GreyExponentials::new(SIMILARITY_SCALE);
     let mut left_f = vec![0f32; stride * h];
     let mut rise = vec![0f32; stride * h];
     let mut fall = vec![0f32; stride * h];

@@ -39,3 +39,23 @@ macro_rules! avx2_variant {
         }
     };
 }
+
+/// `e^(v/s)` and `e^(−v/s)` of every grey level `v`, for similarity weights
+/// `e^(−|a − b|/s) = min(rise[a]·fall[b], fall[a]·rise[b])`: with the factors looked up once per
+/// pixel, a weight per pair of pixels is two products and a min, which vectorise, where an `exp`
+/// per pair is a library call that keeps the loop scalar. Both products stay in `f32`'s normal
+/// range for `s` above 255/87 ≈ 2.9.
+pub(crate) struct GreyExponentials {
+    pub rise: [f32; 256],
+    pub fall: [f32; 256],
+}
+
+impl GreyExponentials {
+    /// The factors for scale `s` (grey levels over which a weight falls by `e`).
+    pub fn new(s: f32) -> Self {
+        GreyExponentials {
+            rise: std::array::from_fn(|v| (v as f32 / s).exp()),
+            fall: std::array::from_fn(|v| (-(v as f32) / s).exp()),
+        }
+    }
+}
