@@ -912,3 +912,120 @@ fn mesh_normals_on_detected_surfaces_take_the_planes_and_object_sides_keep_their
         .count();
     assert!(same * 10 > turned.vertex_count() * 9, "{same} kept");
 }
+
+/// Depth seen by the room's camera (pitched down 20°, at the origin) of the floor, the back wall
+/// and axis-aligned boxes `(min, max)` in world metres.
+fn depth_of_boxes(camera: &Camera, boxes: &[(Vec3, Vec3)]) -> (Mat3, Raster<f32>) {
+    let to_camera = Mat3::from_rotation_x(20f32.to_radians());
+    let to_world = to_camera.transpose();
+    let depth = Raster::from_fn(camera.width as usize, camera.height as usize, |x, y| {
+        let dir_cam = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+        let dir = to_world * dir_cam;
+        let mut t = f32::INFINITY;
+        if dir.y < 0.0 {
+            t = t.min(FLOOR_Y / dir.y);
+        }
+        if dir.z < 0.0 {
+            t = t.min(WALL_Z / dir.z);
+        }
+        for &(lo, hi) in boxes {
+            let (t0, t1) = (lo / dir, hi / dir);
+            let (near, far) = (t0.min(t1).max_element(), t0.max(t1).min_element());
+            if near <= far && near > 0.0 {
+                t = t.min(near);
+            }
+        }
+        -(dir_cam * t).z
+    });
+    (to_camera, depth)
+}
+
+/// The horizontal surfaces at `height` (world metres) whose image polygon holds `pixel`.
+fn surfaces_at_height_holding(
+    found: &Surfaces,
+    to_camera: Mat3,
+    height: f32,
+    pixel: Vec2,
+) -> usize {
+    found
+        .surfaces
+        .iter()
+        .filter(|s| {
+            let c = to_camera.transpose() * s.centroid;
+            s.kind == SurfaceKind::Horizontal
+                && (c.y - height).abs() < 0.05
+                && s.contains_pixel(pixel)
+        })
+        .count()
+}
+
+#[test]
+fn a_table_top_split_by_an_object_standing_on_it_is_one_surface() {
+    let camera = Camera::from_focal(280.0, 320, 240).unwrap();
+    // A board 15 cm wide and 40 cm tall stands across the whole depth of the table: the visible
+    // top is two pieces, the left one larger.
+    let board = (
+        Vec3::new(0.1, TABLE_Y, TABLE_MIN.z),
+        Vec3::new(0.25, TABLE_Y + 0.4, TABLE_MAX.z),
+    );
+    let (to_camera, depth) = depth_of_boxes(&camera, &[(TABLE_MIN, TABLE_MAX), board]);
+    let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default()).unwrap();
+    let found = detect_surfaces(&mesh, &camera, &SurfaceOptions::default()).unwrap();
+    let pixel = |x: f32| {
+        camera
+            .project(to_camera * Vec3::new(x, TABLE_Y, -2.5))
+            .unwrap()
+            .0
+    };
+    let (left, right) = (pixel(-0.3), pixel(0.45));
+    let tables: Vec<_> = found
+        .surfaces
+        .iter()
+        .filter(|s| {
+            let c = to_camera.transpose() * s.centroid;
+            s.kind == SurfaceKind::Horizontal && (c.y - TABLE_Y).abs() < 0.05
+        })
+        .collect();
+    assert_eq!(tables.len(), 1, "table surfaces: {tables:#?}");
+    assert!(
+        tables[0].contains_pixel(left) && tables[0].contains_pixel(right),
+        "the table top's extent misses a piece: {:?} / {:?} in {:?}",
+        left,
+        right,
+        tables[0].polygon_image
+    );
+}
+
+#[test]
+fn two_tables_of_equal_height_with_the_floor_between_them_stay_apart() {
+    let camera = Camera::from_focal(280.0, 320, 240).unwrap();
+    // Two tables 25 cm apart: through the gap the camera sees the floor, behind their plane.
+    let left_table = (TABLE_MIN, Vec3::new(-0.05, TABLE_Y, TABLE_MAX.z));
+    let right_table = (
+        Vec3::new(0.2, FLOOR_Y, TABLE_MIN.z),
+        TABLE_MAX + Vec3::X * 0.3,
+    );
+    let (to_camera, depth) = depth_of_boxes(&camera, &[left_table, right_table]);
+    let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default()).unwrap();
+    let found = detect_surfaces(&mesh, &camera, &SurfaceOptions::default()).unwrap();
+    let pixel = |x: f32| {
+        camera
+            .project(to_camera * Vec3::new(x, TABLE_Y, -2.7))
+            .unwrap()
+            .0
+    };
+    // Both tops are found…
+    for x in [-0.3, 0.5] {
+        assert_eq!(
+            surfaces_at_height_holding(&found, to_camera, TABLE_Y, pixel(x)),
+            1,
+            "no table surface at x = {x} m: {found:#?}"
+        );
+    }
+    // …but no table surface spans the gap, where the floor shows.
+    assert_eq!(
+        surfaces_at_height_holding(&found, to_camera, TABLE_Y, pixel(0.075)),
+        0,
+        "a table surface spans the gap: {found:#?}"
+    );
+}

@@ -10,6 +10,20 @@
 //! removes it from the pool. A hypothesis whose largest piece is too small is dropped and the
 //! search goes on.
 //!
+//! ## Extent
+//! The refined plane's *members* are the points within the looser membership tolerances
+//! ([`SurfaceOptions::membership_tolerance`], [`SurfaceOptions::membership_normal_tolerance_deg`]):
+//! on a table top seen at a grazing angle, stereo normals scatter past the inlier angle, and a
+//! surface made of its inliers alone covered a third of the `room` table's pixels (rendered at
+//! 64 spp; docs/reconstruction-eval.md, stop 28). Its extent is the members' largest connected
+//! piece joined with every other piece of at least a quarter of the smallest surface's size that
+//! it reaches across at most 12 cells of the connectivity grid (each about 1 % of the larger image
+//! side) whose points *hide* the plane (lie on it, or between the camera and the plane along
+//! their rays): what stands on a surface splits its visible part, and the surface goes on behind
+//! it. A gap through which the camera sees what lies behind the plane (the floor between two
+//! tables of the same height) is not crossed, nor is a long way round (a stool top and a box top
+//! of equal height across a room).
+//!
 //! ## Noise model
 //! Depth from stereo has constant noise in *inverse* depth `w = 1/Z` (`σ_w = σ_d / (f·B)` for a
 //! disparity noise `σ_d`; the familiar `σ_Z ≈ Z²·σ_d/(f·B)`), and on a plane `w` is an affine
@@ -90,7 +104,7 @@ impl SurfaceOptions {
     /// surface found with these options, for [`Surfaces::surface_at`] and
     /// [`Surfaces::snap_normals`]: twice `distance_tolerance`, the spread of a plane's own inliers.
     pub fn membership_tolerance(&self) -> f32 {
-        2.0 * self.distance_tolerance
+        MEMBERSHIP_FACTOR * self.distance_tolerance
     }
 
     /// The angle (degrees) within which a mesh normal counts as the normal of a surface found
@@ -165,17 +179,18 @@ pub struct SupportSurface {
     /// Unit normal, on the side facing the camera: the fitted plane's, or ±up exactly for a
     /// near-horizontal plane that fits its points as well levelled (module docs).
     pub normal: Vec3,
-    /// Mean of the inlier points, metres (on the plane).
+    /// Mean of the member points, metres (projected onto the plane).
     pub centroid: Vec3,
     /// Plane offset: points `p` on the plane satisfy `normal · p = offset`.
     pub offset: f32,
-    /// Number of mesh vertices on the surface (before thinning beyond `max_points`, scaled back).
+    /// Number of mesh vertices on the surface, its members (module docs; before thinning beyond
+    /// `max_points`, scaled back).
     pub inliers: usize,
-    /// Flatness: root-mean-square distance of the inliers from the plane, metres.
+    /// Flatness: root-mean-square distance of the members from the plane, metres.
     pub rms_m: f32,
     /// Area of the extent polygon, m².
     pub area_m2: f32,
-    /// Extent: convex hull of the inliers on the plane, metres, counter-clockwise seen along
+    /// Extent: convex hull of the members on the plane, metres, counter-clockwise seen along
     /// −normal.
     pub polygon: Vec<Vec3>,
     /// The same polygon projected into the image, pixels.
@@ -470,6 +485,11 @@ fn detect(
             .map_or(0.0, |sigma| (INLIER_SIGMAS * sigma) as f32),
         cos_normal: options.normal_tolerance_deg.to_radians().cos(),
     };
+    let membership = Tolerance {
+        relative: options.membership_tolerance(),
+        inverse_depth: MEMBERSHIP_FACTOR * tolerance.inverse_depth,
+        cos_normal: options.membership_normal_tolerance_deg().to_radians().cos(),
+    };
     let min_inliers = ((points.len() as f32 * options.min_fraction).ceil() as usize).max(3);
     let mut rng = XorShift(options.seed | 1);
     let mut remaining: Vec<usize> = (0..points.len()).collect();
@@ -515,6 +535,28 @@ fn detect(
         if let Some(p) = fit_plane_robust(&points, &measured_or_all(&points, &piece), camera) {
             plane = p;
         }
+        // The surface's extent: its members (looser than its inliers: noisy normals on a grazing
+        // table top scatter past the inlier angle) across the pieces that what stands on it
+        // splits it into.
+        let members: Vec<usize> = remaining
+            .iter()
+            .copied()
+            .filter(|&i| plane.accepts(&points[i], &membership))
+            .collect();
+        let extent = grid.extent(
+            &points,
+            &members,
+            &plane,
+            &membership,
+            (min_inliers / 4).max(3),
+        );
+        // Never smaller than the inlier piece (the robust refit may move the plane off some of
+        // its points).
+        let piece = if extent.len() >= piece.len() {
+            extent
+        } else {
+            piece
+        };
         let mut on = vec![false; points.len()];
         for &i in &piece {
             on[i] = true;
@@ -600,11 +642,24 @@ impl Plane {
     }
 
     fn accepts(&self, q: &Point, tolerance: &Tolerance) -> bool {
+        self.on_plane(q, tolerance) && self.normal.dot(q.n).abs() >= tolerance.cos_normal
+    }
+
+    /// Whether the point lies within the tolerance's distance of the plane (normal not asked).
+    fn on_plane(&self, q: &Point, tolerance: &Tolerance) -> bool {
         // |Δw| = |distance| / (Z·|D|) along the point's ray (module docs).
         let distance = (self.normal.dot(q.p) - self.offset).abs();
         let allowed =
             q.depth * (tolerance.relative).max(tolerance.inverse_depth * self.offset.abs());
-        distance <= allowed && self.normal.dot(q.n).abs() >= tolerance.cos_normal
+        distance <= allowed
+    }
+
+    /// Whether the point hides the plane: it lies between the camera and where its ray meets the
+    /// plane (so the plane may continue behind it), or on the plane.
+    fn hidden_by(&self, q: &Point, tolerance: &Tolerance) -> bool {
+        // The camera is on the positive side; the ray meets the plane only when n · p < 0.
+        let along = self.normal.dot(q.p);
+        self.on_plane(q, tolerance) || (along < 0.0 && along > self.offset)
     }
 }
 
@@ -619,6 +674,21 @@ const MAX_MISSES: usize = 24;
 
 /// How many standard deviations of inverse-depth noise a point may lie off its plane.
 const INLIER_SIGMAS: f64 = 3.0;
+
+/// A surface's members may lie this many times farther off its plane than its inliers (as
+/// [`SurfaceOptions::membership_tolerance`] is to `distance_tolerance`).
+const MEMBERSHIP_FACTOR: f32 = 2.0;
+
+/// The widest gap (cells of [`ImageGrid`], each about 1 % of the larger image side) between two
+/// pieces of one surface: an object standing on the surface hides a stretch of it about as wide
+/// as the object, while a path along a wall to another piece that happens to lie on the same
+/// plane (a stool top and a box top of equal height) is long.
+const MAX_BRIDGE_CELLS: i32 = 12;
+
+/// A cell joins pieces of a surface when at least this fraction of its points hide the plane
+/// (lie on it or in front of it): a little stereo noise behind the plane does not cut the
+/// bridge, a view through to what lies behind the plane does.
+const BRIDGE_FRACTION: f32 = 0.75;
 
 /// When a point lies on a plane.
 struct Tolerance {
@@ -852,12 +922,99 @@ impl ImageGrid {
         r * self.cols + c
     }
 
-    /// The inliers in the largest 8-connected group of occupied cells (by inlier count).
-    fn largest_component(&self, points: &[Point], inliers: &[usize]) -> Vec<usize> {
-        let mut count = vec![0u32; self.cols * self.rows];
-        for &i in inliers {
+    /// A surface's extent: the members in the largest 8-connected group of cells holding
+    /// members, joined with every other group of at least `min_size` members that it reaches
+    /// through cells whose points hide the plane ([`Plane::hidden_by`], at least
+    /// [`BRIDGE_FRACTION`] of them). Why: a vase on a table, or a sofa on a floor, splits the
+    /// surface's visible part into pieces that are one surface continuing behind it, while a gap
+    /// through which the camera sees *behind* the plane (the floor between two tables of equal
+    /// height) keeps them apart.
+    fn extent(
+        &self,
+        points: &[Point],
+        members: &[usize],
+        plane: &Plane,
+        tolerance: &Tolerance,
+        min_size: usize,
+    ) -> Vec<usize> {
+        let cells = self.cols * self.rows;
+        let mut count = vec![0u32; cells];
+        for &i in members {
             count[self.cell_of(points[i].px)] += 1;
         }
+        let (label, sizes) = self.label_components(&count);
+        let Some(best) = (0..sizes.len()).max_by_key(|&k| sizes[k]) else {
+            return Vec::new();
+        };
+        let mut seen = vec![0u32; cells];
+        let mut hiding = vec![0u32; cells];
+        for q in points {
+            let c = self.cell_of(q.px);
+            seen[c] += 1;
+            hiding[c] += plane.hidden_by(q, tolerance) as u32;
+        }
+        let passable = |c: usize| {
+            count[c] > 0 || (seen[c] > 0 && hiding[c] as f32 >= BRIDGE_FRACTION * seen[c] as f32)
+        };
+        // A piece large enough to join, once reached, is a new starting point.
+        let joins = |c: usize| count[c] > 0 && sizes[label[c] as usize] >= min_size as u64;
+        let mut keep = vec![false; sizes.len()];
+        keep[best] = true;
+        // The most gap cells a path may still cross after reaching each cell (−1: unreached).
+        let mut budget = vec![-1i32; cells];
+        let mut stack: Vec<usize> = (0..cells).filter(|&c| label[c] == best as u32).collect();
+        for &c in &stack {
+            budget[c] = MAX_BRIDGE_CELLS;
+        }
+        while let Some(k) = stack.pop() {
+            for kk in self.neighbours(k) {
+                if !passable(kk) {
+                    continue;
+                }
+                let left = if joins(kk) {
+                    MAX_BRIDGE_CELLS
+                } else {
+                    budget[k] - 1
+                };
+                if left > budget[kk] {
+                    budget[kk] = left;
+                    if joins(kk) {
+                        keep[label[kk] as usize] = true;
+                    }
+                    if left > 0 {
+                        stack.push(kk);
+                    }
+                }
+            }
+        }
+        members
+            .iter()
+            .copied()
+            .filter(|&i| {
+                let c = self.cell_of(points[i].px);
+                budget[c] >= 0 && keep[label[c] as usize]
+            })
+            .collect()
+    }
+
+    /// The 8 neighbours of cell `k` inside the grid.
+    fn neighbours(&self, k: usize) -> impl Iterator<Item = usize> + '_ {
+        let (r, c) = ((k / self.cols) as i64, (k % self.cols) as i64);
+        (-1..=1)
+            .flat_map(move |dr| (-1..=1).map(move |dc| (r + dr, c + dc)))
+            .filter(move |&(rr, cc)| {
+                (rr, cc) != (r, c)
+                    && rr >= 0
+                    && cc >= 0
+                    && rr < self.rows as i64
+                    && cc < self.cols as i64
+            })
+            .map(move |(rr, cc)| rr as usize * self.cols + cc as usize)
+    }
+
+    /// Labels the 8-connected groups of cells with a non-zero count: each cell's group
+    /// (`u32::MAX` for empty cells) and each group's total count.
+    fn label_components(&self, count: &[u32]) -> (Vec<u32>, Vec<u64>) {
         let mut label = vec![u32::MAX; count.len()];
         let mut sizes = Vec::new();
         let mut stack = Vec::new();
@@ -871,23 +1028,25 @@ impl ImageGrid {
             stack.push(start);
             while let Some(k) = stack.pop() {
                 size += count[k] as u64;
-                let (r, c) = ((k / self.cols) as i64, (k % self.cols) as i64);
-                for dr in -1..=1 {
-                    for dc in -1..=1 {
-                        let (rr, cc) = (r + dr, c + dc);
-                        if rr < 0 || cc < 0 || rr >= self.rows as i64 || cc >= self.cols as i64 {
-                            continue;
-                        }
-                        let kk = rr as usize * self.cols + cc as usize;
-                        if count[kk] > 0 && label[kk] == u32::MAX {
-                            label[kk] = id;
-                            stack.push(kk);
-                        }
+                for kk in self.neighbours(k) {
+                    if count[kk] > 0 && label[kk] == u32::MAX {
+                        label[kk] = id;
+                        stack.push(kk);
                     }
                 }
             }
             sizes.push(size);
         }
+        (label, sizes)
+    }
+
+    /// The inliers in the largest 8-connected group of occupied cells (by inlier count).
+    fn largest_component(&self, points: &[Point], inliers: &[usize]) -> Vec<usize> {
+        let mut count = vec![0u32; self.cols * self.rows];
+        for &i in inliers {
+            count[self.cell_of(points[i].px)] += 1;
+        }
+        let (label, sizes) = self.label_components(&count);
         let Some(best) = (0..sizes.len()).max_by_key(|&k| sizes[k]) else {
             return Vec::new();
         };
