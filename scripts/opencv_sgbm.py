@@ -5,7 +5,8 @@ Usage: opencv_sgbm.py OUT_DIR SCENE_DIR...
 
 For every Middlebury scene folder (im0.png, im1.png, calib.txt) and both modes (MODE_SGBM_3WAY,
 MODE_HH4) it writes OUT_DIR/<scene>.<mode>.pfm (disparity, inf = no estimate, Middlebury PFM) and
-prints one JSON line {"scene", "mode", "ms", "pfm"} where ms times compute() alone.
+prints one JSON line {"scene", "mode", "ms", "pfm"} where ms times compute() alone, after a first
+line {"opencv": VERSION} (the peer's timings and scores differ between releases).
 Parameters as in shared/data/README.md: blockSize 3, P1 = 8*3*9, P2 = 32*3*9, uniquenessRatio 10,
 speckleWindowSize 100, speckleRange 32, disp12MaxDiff 1; numDisparities = ndisp rounded up to 16.
 """
@@ -38,6 +39,7 @@ def write_pfm(path, disparity):
 def main():
     out_dir, scenes = sys.argv[1], sys.argv[2:]
     os.makedirs(out_dir, exist_ok=True)
+    print(json.dumps({"opencv": cv2.__version__}), flush=True)
     modes = {"SGBM_3WAY": cv2.STEREO_SGBM_MODE_SGBM_3WAY, "HH4": cv2.STEREO_SGBM_MODE_HH4}
     for scene in scenes:
         name = os.path.basename(os.path.normpath(scene))

@@ -415,9 +415,15 @@ fn run_opencv(scenes: &[Scene], out_dir: &Path, quiet: bool) -> Result<Vec<Row>>
         "running opencv_sgbm.py",
     )?;
     let mut rows: Vec<Row> = Vec::new();
+    // The script's first line names the OpenCV release.
+    let mut version = String::from("version unknown");
     for line in String::from_utf8_lossy(&out.stdout).lines() {
         let v: serde_json::Value = serde_json::from_str(line)
             .map_err(|e| fail("bad output line", format!("{line}: {e}")))?;
+        if let Some(v) = v["opencv"].as_str() {
+            version = v.to_string();
+            continue;
+        }
         let (Some(scene), Some(mode), Some(ms), Some(pfm)) = (
             v["scene"].as_str(),
             v["mode"].as_str(),
@@ -437,7 +443,9 @@ fn run_opencv(scenes: &[Scene], out_dir: &Path, quiet: bool) -> Result<Vec<Row>>
             None => {
                 rows.push(Row {
                     name: name.clone(),
-                    description: format!("StereoSGBM MODE_{mode}, README parameters"),
+                    description: format!(
+                        "StereoSGBM MODE_{mode} (OpenCV {version}), README parameters"
+                    ),
                     scores: vec![],
                     ms: vec![],
                     peer: true,
