@@ -3,8 +3,9 @@
 
 use std::process::Command;
 
-const COLUMNS: [&str; 12] = [
+const COLUMNS: [&str; 13] = [
     "scene",
+    "render noise (median σ/L)",
     "depth rel. err. median / p90",
     "mesh rel. err. median / p90",
     "mesh coverage",
@@ -48,6 +49,9 @@ fn room_at_tiny_size_gives_the_table_and_finite_figures() {
     .unwrap();
     let r = &json[0];
     assert_eq!(r["scene"], "room");
+    // Two samples per pixel: a noisy render, but a finite, positive noise figure.
+    let noise = r["render_noise"].as_f64().unwrap();
+    assert!(noise > 0.0 && noise < 10.0, "render noise {noise}: {r}");
     for key in ["depth_error", "mesh_error", "normal_error_deg"] {
         let (m, p) = (
             r[key]["median"].as_f64().unwrap(),

@@ -15,7 +15,7 @@ use std::time::Instant;
 use glam::{Mat4, Vec2, Vec3};
 use parallax::camera::Camera;
 use parallax::context::{Context, ContextOptions};
-use parallax::image::{Image, Raster};
+use parallax::image::{rec709_luma, Image, Raster};
 use parallax::mesh::{self, PlaceOptions, Surfaces};
 use parallax::reference::{self, Images, RenderOptions, SampleBudget, Shape};
 use parallax::scene::Scene;
@@ -121,6 +121,10 @@ struct SceneResult {
     width: u32,
     height: u32,
     spp: u32,
+    /// Median over the left view's pixels of the renderer's standard error of the pixel's
+    /// luminance relative to the luminance: how noisy the pair the matcher sees is. `None` with
+    /// one sample per pixel (no variance).
+    render_noise: Option<f64>,
     render_s: f64,
     reconstruct_s: f64,
     /// Relative error |Z − Z*|/Z* of the scene's depth map (stereo) over pixels with both.
@@ -369,6 +373,7 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
         width: w as u32,
         height: h as u32,
         spp: args.spp,
+        render_noise: render_noise(&images),
         render_s,
         reconstruct_s,
         depth_error: spread(scores.iter().filter_map(|s| s.0).collect()),
@@ -390,6 +395,23 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
             })
             .collect(),
     })
+}
+
+/// Median relative standard error `√variance / luminance` of the left view's pixels (those with
+/// a finite, positive luminance and a finite variance); `None` without a variance.
+fn render_noise(images: &Images) -> Option<f64> {
+    let variance = images.variance.as_ref()?;
+    let relative: Vec<f64> = variance
+        .pixels()
+        .iter()
+        .zip(images.left.pixels())
+        .filter_map(|(&v, &rgb)| {
+            let luma = rec709_luma(rgb);
+            (v.is_finite() && v >= 0.0 && luma.is_finite() && luma > 0.0)
+                .then(|| (v as f64).sqrt() / luma as f64)
+        })
+        .collect();
+    spread(relative).map(|s| s.median)
 }
 
 /// The detected surface that matches `plane` (normal within [`MATCH_NORMAL_DEG`] of the true up,
@@ -442,8 +464,9 @@ fn interior_pixel(label: &Raster<Option<usize>>, k: usize) -> Option<(usize, usi
 }
 
 /// The columns of the results table (also checked by the tests).
-pub const COLUMNS: [&str; 12] = [
+pub const COLUMNS: [&str; 13] = [
     "scene",
+    "render noise (median σ/L)",
     "depth rel. err. median / p90",
     "mesh rel. err. median / p90",
     "mesh coverage",
@@ -503,8 +526,10 @@ fn markdown(results: &[SceneResult], args: &ReconstructionArgs) -> String {
         };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.1} % | {} | {} | {} | {} | {} | {:.2} | {} | {} |",
+            "| {} | {} | {} | {} | {:.1} % | {} | {} | {} | {} | {} | {:.2} | {} | {} |",
             r.scene,
+            r.render_noise
+                .map_or("—".into(), |v| format!("{:.1} %", 100.0 * v)),
             pct(r.depth_error),
             pct(r.mesh_error),
             100.0 * r.mesh_coverage,
@@ -572,6 +597,10 @@ fn markdown(results: &[SceneResult], args: &ReconstructionArgs) -> String {
     let _ = writeln!(
         s,
         "\n## Definitions\n\n\
+         - Render noise: the path tracer's standard error of each left pixel's luminance \
+         (`variance0.pfm` of `parallax synth`), relative to the pixel's luminance; median over \
+         the pixels (— with one sample per pixel). The right view carries independent noise of \
+         the same size.\n\
          - Relative error: |Z − Z*| / Z* per pixel with true depth Z* and an estimate Z (the depth \
          map's value; for the mesh, the depth of a pick at the pixel centre); median and 90th \
          percentile over those pixels. Coverage: pixels with true depth whose pick hits the mesh.\n\
