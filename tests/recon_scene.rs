@@ -7,8 +7,8 @@ use parallax::camera::Camera;
 use parallax::image::Raster;
 use parallax::mesh::{
     detect_surfaces, detect_surfaces_with_confidence, detect_surfaces_with_host_up, pick, place,
-    place_on_ray, Bvh, MeshOptions, PlaceOptions, Ray, SceneMesh, SurfaceKind, SurfaceOptions,
-    Surfaces, UpSource, PLACE_SEARCH_RADIUS_PX,
+    place_on_ray, Bvh, MeshOptions, PlaceOptions, Ray, SceneMesh, SupportSurface, SurfaceKind,
+    SurfaceOptions, Surfaces, UpSource, PLACE_SEARCH_RADIUS_PX,
 };
 
 const FLOOR_Y: f32 = -1.4;
@@ -913,119 +913,116 @@ fn mesh_normals_on_detected_surfaces_take_the_planes_and_object_sides_keep_their
     assert!(same * 10 > turned.vertex_count() * 9, "{same} kept");
 }
 
-/// Depth seen by the room's camera (pitched down 20°, at the origin) of the floor, the back wall
-/// and axis-aligned boxes `(min, max)` in world metres.
-fn depth_of_boxes(camera: &Camera, boxes: &[(Vec3, Vec3)]) -> (Mat3, Raster<f32>) {
-    let to_camera = Mat3::from_rotation_x(20f32.to_radians());
-    let to_world = to_camera.transpose();
-    let depth = Raster::from_fn(camera.width as usize, camera.height as usize, |x, y| {
-        let dir_cam = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
-        let dir = to_world * dir_cam;
-        let mut t = f32::INFINITY;
-        if dir.y < 0.0 {
-            t = t.min(FLOOR_Y / dir.y);
-        }
-        if dir.z < 0.0 {
-            t = t.min(WALL_Z / dir.z);
-        }
-        for &(lo, hi) in boxes {
-            let (t0, t1) = (lo / dir, hi / dir);
-            let (near, far) = (t0.min(t1).max_element(), t0.max(t1).min_element());
-            if near <= far && near > 0.0 {
-                t = t.min(near);
-            }
-        }
-        -(dir_cam * t).z
-    });
-    (to_camera, depth)
+/// The surfaces found on the exact depth of the floor, the back wall and axis-aligned boxes
+/// `(min, max)` (world metres), seen at 320×240 by the room's camera (pitched down 20°, at the
+/// origin); and the image position of a point `(x, TABLE_Y, z)` on the tables' plane.
+struct BoxScene {
+    camera: Camera,
+    to_camera: Mat3,
+    found: Surfaces,
 }
 
-/// The horizontal surfaces at `height` (world metres) whose image polygon holds `pixel`.
-fn surfaces_at_height_holding(
-    found: &Surfaces,
-    to_camera: Mat3,
-    height: f32,
-    pixel: Vec2,
-) -> usize {
-    found
-        .surfaces
-        .iter()
-        .filter(|s| {
-            let c = to_camera.transpose() * s.centroid;
-            s.kind == SurfaceKind::Horizontal
-                && (c.y - height).abs() < 0.05
-                && s.contains_pixel(pixel)
-        })
-        .count()
+impl BoxScene {
+    fn new(boxes: &[(Vec3, Vec3)]) -> BoxScene {
+        let camera = Camera::from_focal(280.0, 320, 240).unwrap();
+        let to_camera = Mat3::from_rotation_x(20f32.to_radians());
+        let to_world = to_camera.transpose();
+        let depth = Raster::from_fn(camera.width as usize, camera.height as usize, |x, y| {
+            let dir_cam = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+            let dir = to_world * dir_cam;
+            let mut t = f32::INFINITY;
+            if dir.y < 0.0 {
+                t = t.min(FLOOR_Y / dir.y);
+            }
+            if dir.z < 0.0 {
+                t = t.min(WALL_Z / dir.z);
+            }
+            for &(lo, hi) in boxes {
+                let (t0, t1) = (lo / dir, hi / dir);
+                let (near, far) = (t0.min(t1).max_element(), t0.max(t1).min_element());
+                if near <= far && near > 0.0 {
+                    t = t.min(near);
+                }
+            }
+            -(dir_cam * t).z
+        });
+        let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default()).unwrap();
+        let found = detect_surfaces(&mesh, &camera, &SurfaceOptions::default()).unwrap();
+        BoxScene {
+            camera,
+            to_camera,
+            found,
+        }
+    }
+
+    fn table_pixel(&self, x: f32, z: f32) -> Vec2 {
+        let p = self.to_camera * Vec3::new(x, TABLE_Y, z);
+        self.camera.project(p).unwrap().0
+    }
+
+    /// The horizontal surfaces at the tables' height.
+    fn tables(&self) -> Vec<&SupportSurface> {
+        self.found
+            .surfaces
+            .iter()
+            .filter(|s| {
+                let c = self.to_camera.transpose() * s.centroid;
+                s.kind == SurfaceKind::Horizontal && (c.y - TABLE_Y).abs() < 0.05
+            })
+            .collect()
+    }
 }
 
 #[test]
 fn a_table_top_split_by_an_object_standing_on_it_is_one_surface() {
-    let camera = Camera::from_focal(280.0, 320, 240).unwrap();
     // A board 15 cm wide and 40 cm tall stands across the whole depth of the table: the visible
     // top is two pieces, the left one larger.
     let board = (
         Vec3::new(0.1, TABLE_Y, TABLE_MIN.z),
         Vec3::new(0.25, TABLE_Y + 0.4, TABLE_MAX.z),
     );
-    let (to_camera, depth) = depth_of_boxes(&camera, &[(TABLE_MIN, TABLE_MAX), board]);
-    let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default()).unwrap();
-    let found = detect_surfaces(&mesh, &camera, &SurfaceOptions::default()).unwrap();
-    let pixel = |x: f32| {
-        camera
-            .project(to_camera * Vec3::new(x, TABLE_Y, -2.5))
-            .unwrap()
-            .0
-    };
-    let (left, right) = (pixel(-0.3), pixel(0.45));
-    let tables: Vec<_> = found
-        .surfaces
-        .iter()
-        .filter(|s| {
-            let c = to_camera.transpose() * s.centroid;
-            s.kind == SurfaceKind::Horizontal && (c.y - TABLE_Y).abs() < 0.05
-        })
-        .collect();
+    let scene = BoxScene::new(&[(TABLE_MIN, TABLE_MAX), board]);
+    let tables = scene.tables();
     assert_eq!(tables.len(), 1, "table surfaces: {tables:#?}");
+    let (left, right) = (scene.table_pixel(-0.3, -2.5), scene.table_pixel(0.45, -2.5));
     assert!(
         tables[0].contains_pixel(left) && tables[0].contains_pixel(right),
-        "the table top's extent misses a piece: {:?} / {:?} in {:?}",
-        left,
-        right,
+        "the table top's extent misses a piece: {left:?} / {right:?} in {:?}",
         tables[0].polygon_image
     );
 }
 
 #[test]
 fn two_tables_of_equal_height_with_the_floor_between_them_stay_apart() {
-    let camera = Camera::from_focal(280.0, 320, 240).unwrap();
     // Two tables 25 cm apart: through the gap the camera sees the floor, behind their plane.
     let left_table = (TABLE_MIN, Vec3::new(-0.05, TABLE_Y, TABLE_MAX.z));
     let right_table = (
         Vec3::new(0.2, FLOOR_Y, TABLE_MIN.z),
         TABLE_MAX + Vec3::X * 0.3,
     );
-    let (to_camera, depth) = depth_of_boxes(&camera, &[left_table, right_table]);
-    let mesh = SceneMesh::from_depth(&depth, &camera, &MeshOptions::default()).unwrap();
-    let found = detect_surfaces(&mesh, &camera, &SurfaceOptions::default()).unwrap();
-    let pixel = |x: f32| {
-        camera
-            .project(to_camera * Vec3::new(x, TABLE_Y, -2.7))
-            .unwrap()
-            .0
+    let scene = BoxScene::new(&[left_table, right_table]);
+    let holding = |x: f32| {
+        let pixel = scene.table_pixel(x, -2.7);
+        scene
+            .tables()
+            .iter()
+            .filter(|s| s.contains_pixel(pixel))
+            .count()
     };
     // Both tops are found…
     for x in [-0.3, 0.5] {
         assert_eq!(
-            surfaces_at_height_holding(&found, to_camera, TABLE_Y, pixel(x)),
+            holding(x),
             1,
-            "no table surface at x = {x} m: {found:#?}"
+            "no table surface at x = {x} m: {:#?}",
+            scene.found
         );
     }
     // …but no table surface spans the gap, where the floor shows.
     assert_eq!(
-        surfaces_at_height_holding(&found, to_camera, TABLE_Y, pixel(0.075)),
+        holding(0.075),
         0,
-        "a table surface spans the gap: {found:#?}"
+        "a table surface spans the gap: {:#?}",
+        scene.found
     );
 }

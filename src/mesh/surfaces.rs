@@ -543,6 +543,8 @@ fn detect(
             .copied()
             .filter(|&i| plane.accepts(&points[i], &membership))
             .collect();
+        // Pieces of a quarter of the smallest surface's size join: smaller ones are as likely
+        // to be stereo errors that happen to lie on the plane.
         let extent = grid.extent(
             &points,
             &members,
