@@ -1290,6 +1290,70 @@ impl XorShift {
 mod tests {
     use super::*;
 
+    /// Members of a horizontal plane in two blocks of pixels side by side, `gap` pixels apart,
+    /// the gap's pixels showing `gap_point` (only pixel positions enter the grid; the points
+    /// enter the plane tests); the extent of the larger (left) block on a 200×100 image, 2-pixel
+    /// cells.
+    fn extent_across(gap: usize, gap_point: Vec3) -> (usize, usize) {
+        let camera = Camera::from_focal(100.0, 200, 100).unwrap();
+        let grid = ImageGrid::new(&camera);
+        let plane = Plane::facing_camera(Vec3::Y, -1.0);
+        let point = |x: usize, y: usize, p: Vec3| Point {
+            p,
+            n: Vec3::Y,
+            px: Vec2::new(x as f32 + 0.5, y as f32 + 0.5),
+            depth: -p.z,
+            measured: true,
+        };
+        let on_plane = Vec3::new(0.0, -1.0, -3.0);
+        let (left, right) = (10..50, 50 + gap..80 + gap);
+        let mut points = Vec::new();
+        let mut members = Vec::new();
+        for y in 40..60 {
+            for x in left.clone().chain(right.clone()) {
+                members.push(points.len());
+                points.push(point(x, y, on_plane));
+            }
+            for x in 50..50 + gap {
+                points.push(point(x, y, gap_point));
+            }
+        }
+        let tolerance = Tolerance {
+            relative: 0.01,
+            inverse_depth: 0.0,
+            cos_normal: 30f32.to_radians().cos(),
+        };
+        let extent = grid.extent(&points, &members, &plane, &tolerance, 1);
+        let on_right = extent
+            .iter()
+            .filter(|&&i| points[i].px.x >= (50 + gap) as f32)
+            .count();
+        (extent.len() - on_right, on_right)
+    }
+
+    #[test]
+    fn a_surface_joins_a_piece_across_a_short_hidden_gap_only() {
+        // Above the plane, between it and the camera: it hides the plane.
+        let hiding = Vec3::new(0.0, -0.5, -3.0);
+        // Below the plane: the camera sees past where the plane would be.
+        let beyond = Vec3::new(0.0, -1.5, -3.0);
+        assert_eq!(
+            extent_across(16, hiding),
+            (800, 600),
+            "8 hidden cells are crossed"
+        );
+        assert_eq!(
+            extent_across(40, hiding),
+            (800, 0),
+            "20 cells are more than MAX_BRIDGE_CELLS"
+        );
+        assert_eq!(
+            extent_across(4, beyond),
+            (800, 0),
+            "a view past the plane cuts it"
+        );
+    }
+
     #[test]
     fn hull_and_point_in_polygon() {
         let pts = vec![
