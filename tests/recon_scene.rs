@@ -914,8 +914,8 @@ fn mesh_normals_on_detected_surfaces_take_the_planes_and_object_sides_keep_their
 }
 
 /// The surfaces found on the exact depth of the floor, the back wall and axis-aligned boxes
-/// `(min, max)` (world metres), seen at 320×240 by the room's camera (pitched down 20°, at the
-/// origin); and the image position of a point `(x, TABLE_Y, z)` on the tables' plane.
+/// `(min, max)` (world metres), seen at 320×240 by a camera like the room's (pitched down 20°,
+/// at the origin).
 struct BoxScene {
     camera: Camera,
     to_camera: Mat3,
@@ -955,6 +955,7 @@ impl BoxScene {
         }
     }
 
+    /// The image position of the world point `(x, TABLE_Y, z)`, on the tables' plane.
     fn table_pixel(&self, x: f32, z: f32) -> Vec2 {
         let p = self.to_camera * Vec3::new(x, TABLE_Y, z);
         self.camera.project(p).unwrap().0
