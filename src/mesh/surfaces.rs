@@ -939,15 +939,16 @@ impl ImageGrid {
         tolerance: &Tolerance,
         min_size: usize,
     ) -> Vec<usize> {
-        let cells = self.cols * self.rows;
-        let mut count = vec![0u32; cells];
-        for &i in members {
-            count[self.cell_of(points[i].px)] += 1;
-        }
-        let (label, sizes) = self.label_components(&count);
-        let Some(best) = (0..sizes.len()).max_by_key(|&k| sizes[k]) else {
+        let Some(Occupancy {
+            count,
+            label,
+            sizes,
+            largest: best,
+        }) = self.occupancy(points, members)
+        else {
             return Vec::new();
         };
+        let cells = count.len();
         let mut seen = vec![0u32; cells];
         let mut hiding = vec![0u32; cells];
         for q in points {
@@ -1044,20 +1045,44 @@ impl ImageGrid {
 
     /// The inliers in the largest 8-connected group of occupied cells (by inlier count).
     fn largest_component(&self, points: &[Point], inliers: &[usize]) -> Vec<usize> {
-        let mut count = vec![0u32; self.cols * self.rows];
-        for &i in inliers {
-            count[self.cell_of(points[i].px)] += 1;
-        }
-        let (label, sizes) = self.label_components(&count);
-        let Some(best) = (0..sizes.len()).max_by_key(|&k| sizes[k]) else {
+        let Some(occupancy) = self.occupancy(points, inliers) else {
             return Vec::new();
         };
         inliers
             .iter()
             .copied()
-            .filter(|&i| label[self.cell_of(points[i].px)] == best as u32)
+            .filter(|&i| occupancy.label[self.cell_of(points[i].px)] == occupancy.largest as u32)
             .collect()
     }
+
+    /// The cells holding the points `idx`: how many each, their 8-connected groups and the
+    /// largest group (by point count); `None` when `idx` is empty.
+    fn occupancy(&self, points: &[Point], idx: &[usize]) -> Option<Occupancy> {
+        let mut count = vec![0u32; self.cols * self.rows];
+        for &i in idx {
+            count[self.cell_of(points[i].px)] += 1;
+        }
+        let (label, sizes) = self.label_components(&count);
+        let largest = (0..sizes.len()).max_by_key(|&k| sizes[k])?;
+        Some(Occupancy {
+            count,
+            label,
+            sizes,
+            largest,
+        })
+    }
+}
+
+/// Points per cell of an [`ImageGrid`], grouped ([`ImageGrid::occupancy`]).
+struct Occupancy {
+    /// Points in each cell.
+    count: Vec<u32>,
+    /// Each cell's group (`u32::MAX` for empty cells).
+    label: Vec<u32>,
+    /// Each group's point count.
+    sizes: Vec<u64>,
+    /// The group with the most points.
+    largest: usize,
 }
 
 /// Largest angle between a plane's (or a ceiling's flipped) normal and the camera's +Y for it to
