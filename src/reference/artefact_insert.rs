@@ -292,6 +292,7 @@ mod tests {
             }],
             lights: vec![],
             environment: Environment::Constant { radiance: [1.0; 3] },
+            portals: Vec::new(),
         };
         let a = box_artefact([3.0, 5.0, -7.0], [0.2, 0.1, 0.05], [0.8, 0.1, 0.1, 1.0]);
         let glb = insert_artefact(&a, [0.1, 0.0, 0.0], Some(0.8), 0.0).unwrap();

@@ -6,7 +6,8 @@
 //! at (0, 1.3, 1) looking at (0, 0.75, −2).
 
 use super::description::{
-    CameraRig, Environment, Light, Material, Object, Pattern, Scene, Shape, Texture, Transform,
+    CameraRig, Environment, Light, Material, Object, Pattern, Portal, Scene, Shape, Texture,
+    Transform,
 };
 use crate::error::{Error, Result};
 
@@ -26,7 +27,8 @@ const TABLE_TOP: f32 = 0.75;
 /// - `two-lights`: the same room lit by two sphere lights, so every object casts two shadows
 ///   (thesis Fig. 3.12);
 /// - `clutter`: many objects on the floor and the table occluding each other (Fig. 4.7 b);
-/// - `window`: a sun (directional, 0.53°) through a window in the left wall plus a dim sky.
+/// - `window`: a sun (directional, 0.53°) through a window in the left wall plus a dim sky (the
+///   window is a portal, so both are sampled through it).
 ///
 /// # Errors
 /// `InvalidArgument` for an unknown name (the message lists the known ones).
@@ -276,6 +278,7 @@ fn room() -> Scene {
         objects,
         lights: vec![ceiling_light()],
         environment: Environment::Black,
+        portals: Vec::new(),
     }
 }
 
@@ -405,6 +408,7 @@ fn clutter() -> Scene {
         objects,
         lights: vec![ceiling_light()],
         environment: Environment::Black,
+        portals: Vec::new(),
     }
 }
 
@@ -448,5 +452,12 @@ fn window() -> Scene {
             horizon: [2.6, 2.7, 2.9],
             ground: [0.8, 0.7, 0.6],
         },
+        // Across the opening on the wall's outer face, so that the sun's beam reaches the sill
+        // and the jambs as it does through the real opening.
+        portals: vec![Portal {
+            center: [wall_x - 0.05, (y0 + y1) / 2.0, (z0 + z1) / 2.0],
+            edge_u: [0.0, 0.0, z1 - z0],
+            edge_v: [0.0, y1 - y0, 0.0],
+        }],
     }
 }

@@ -43,6 +43,11 @@ pub struct Scene {
     /// Radiance arriving from infinitely far away.
     #[serde(default)]
     pub environment: Environment,
+    /// Openings (windows, doors) through which the environment and the directional lights shine
+    /// into an interior. Optional: they guide the sampling of that light (far less noise in a
+    /// room lit through a window) and never change what the image converges to.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub portals: Vec<Portal>,
 }
 
 /// A rectified stereo rig: two identical pinhole cameras side by side (no convergence), the right
@@ -348,6 +353,20 @@ pub enum Light {
     },
 }
 
+/// An opening through which distant light enters, like Cycles' light portals: the parallelogram
+/// with corners `center ± edge_u/2 ± edge_v/2`. It is neither geometry nor an emitter; place it
+/// across the opening (for a window in a wall, on the wall's outer face).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Portal {
+    /// Centre, world metres.
+    pub center: [f32; 3],
+    /// First edge (full length), metres.
+    pub edge_u: [f32; 3],
+    /// Second edge (full length), metres.
+    pub edge_v: [f32; 3],
+}
+
 /// Radiance from infinitely far away in every direction not covered by a light.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
@@ -478,7 +497,25 @@ impl Scene {
                 other => other,
             })?;
         }
+        for (i, p) in self.portals.iter().enumerate() {
+            p.validate().map_err(|e| match e {
+                Error::InvalidArgument(m) => Error::invalid(format!("portal {i}: {m}")),
+                other => other,
+            })?;
+        }
         self.environment.validate()
+    }
+}
+
+impl Portal {
+    fn validate(&self) -> Result<()> {
+        finite3("center", self.center)?;
+        finite3("edge_u", self.edge_u)?;
+        finite3("edge_v", self.edge_v)?;
+        let area = Vec3::from(self.edge_u)
+            .cross(Vec3::from(self.edge_v))
+            .length();
+        positive("portal area (|edge_u × edge_v|)", area)
     }
 }
 

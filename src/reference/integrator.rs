@@ -2,7 +2,11 @@
 //!
 //! At every surface vertex each light (and the environment, when it emits) is sampled once and
 //! the BRDF once; both strategies are weighted with the power heuristic, so area lights, the sun
-//! disc and the environment are all found by both. Paths stop at the bounce limit or by Russian
+//! disc and the environment are all found by both. When the scene has portals
+//! ([`super::portals`]), the environment is also sampled through them, and every directional
+//! light once more where its beam lands after passing an opening (the "beam" strategy): the lit
+//! point is connected to the shaded point, weighted against finding it by a BRDF bounce followed
+//! by the light's own sample there, or by two bounces. Paths stop at the bounce limit or by Russian
 //! roulette after three bounces. Each sample of each pixel draws from its own generator seeded by
 //! (seed, view, pixel, sample index), so the image does not depend on the thread count; rayon
 //! spreads bands of rows over the threads.
@@ -12,7 +16,8 @@ use rayon::prelude::*;
 
 use super::brdf::Brdf;
 use super::geometry::{plane_distance_f64, Geometry, SurfaceHit};
-use super::lights::{Emitter, EnvLight};
+use super::lights::{Emitter, EnvLight, LightSample};
+use super::portals::Portals;
 use super::sampling::{power_heuristic, Frame, Rng};
 
 /// Rows per unit of parallel work.
@@ -69,8 +74,61 @@ pub(crate) struct Tracer {
     pub geometry: Geometry,
     pub emitters: Vec<Emitter>,
     pub env: EnvLight,
+    /// Openings distant light is sampled through (may be empty).
+    pub portals: Portals,
     pub camera: Camera,
     pub max_bounces: u32,
+}
+
+/// A surface point ready for light sampling.
+struct Shading {
+    vertex: Vertex,
+    /// Ray origin pushed off the surface.
+    origin: Vec3A,
+    frame: Frame,
+    /// Direction towards the viewer, in `frame`.
+    wo: Vec3A,
+    brdf: Brdf,
+}
+
+/// The surface vertex a BRDF-sampled ray left from: what weighing the beam strategy against the
+/// ray's findings needs.
+#[derive(Debug, Clone, Copy)]
+struct Vertex {
+    position: Vec3A,
+    geometric_normal: Vec3A,
+    /// Density per unit area with which the vertex before it sampled this one (0: the camera's
+    /// primary vertex, which the beam strategy cannot produce).
+    area_pdf: f32,
+}
+
+/// The three ways a path can find light from a distant light that reached a surface point `y`
+/// through a portal and was reflected towards the shaded point `x`.
+#[derive(Debug, Clone, Copy)]
+enum DistantPath {
+    /// A BRDF bounce from `x` to `y`, then the light's own sample at `y`.
+    BounceThenLight = 0,
+    /// The beam strategy: `y` sampled where the beam lands, connected to `x`.
+    Beam = 1,
+    /// Two BRDF bounces: `x` to `y`, then from `y` into the light's disc.
+    TwoBounces = 2,
+}
+
+/// Power-heuristic weight of `path` among the three [`DistantPath`]s, from the densities of `y`
+/// per unit area as a bounce from `x` gives it (`a`) and as the beam gives it (`b`), and of the
+/// light's direction at `y` as the light's sampling gives it (`s`; 1 for a delta light) and as
+/// `y`'s BRDF gives it (`c`; 0 for a delta light).
+fn distant_path_weight(path: DistantPath, a: f32, b: f32, s: f32, c: f32) -> f32 {
+    // In f64: squared products of densities near 1e4 would overflow f32.
+    let (a, b, s, c) = (a as f64, b as f64, s as f64, c as f64);
+    let products = [a * s, b * s, a * c];
+    let sum: f64 = products.iter().map(|p| p * p).sum();
+    let w = products[path as usize].powi(2) / sum;
+    if w.is_finite() {
+        w as f32
+    } else {
+        0.0
+    }
 }
 
 /// What a closest-hit query found.
@@ -162,6 +220,8 @@ impl Tracer {
         // Density of the BRDF sample that produced the current ray; 0 for the camera ray, whose
         // hits on emitters are not weighted.
         let mut prev_pdf = 0.0f32;
+        // The surface vertex the current ray left from (None for the camera ray).
+        let mut last: Option<Vertex> = None;
         let mut inserted = false;
         let env_sampled = !self.env.is_black();
         let mut bounce = 0u32;
@@ -169,18 +229,24 @@ impl Tracer {
             match self.closest(o, d, f32::INFINITY, counts) {
                 Hit::Miss => {
                     let le = self.env.radiance(d);
-                    let w = if prev_pdf > 0.0 && env_sampled {
-                        power_heuristic(prev_pdf, self.env.pdf(d))
-                    } else {
-                        1.0
+                    let w = match last {
+                        Some(v) if prev_pdf > 0.0 && env_sampled => {
+                            power_heuristic(prev_pdf, self.env_pdf(v.position, d))
+                        }
+                        _ => 1.0,
                     };
                     radiance += throughput * le * w;
                     for e in &self.emitters {
                         if let Some((le, light_pdf)) = e.escaped(d) {
-                            let w = if prev_pdf > 0.0 {
-                                power_heuristic(prev_pdf, light_pdf)
-                            } else {
-                                1.0
+                            let w = match last {
+                                Some(v) if prev_pdf > 0.0 => self.distant_weight(
+                                    DistantPath::TwoBounces,
+                                    &v,
+                                    d,
+                                    light_pdf,
+                                    prev_pdf,
+                                ),
+                                _ => 1.0,
                             };
                             radiance += throughput * le * w;
                         }
@@ -218,18 +284,27 @@ impl Tracer {
                     );
                     let origin = offset(sp.position, ng);
                     let record = if bounce == 0 { shadow.take() } else { None };
-                    radiance += throughput
-                        * self.direct_light(
-                            &sp.position,
-                            origin,
-                            ng,
-                            &frame,
-                            wo,
-                            &brdf,
-                            rng,
-                            record,
-                            counts,
-                        );
+                    let here = Vertex {
+                        position: sp.position,
+                        geometric_normal: ng,
+                        area_pdf: match last {
+                            Some(_) => prev_pdf * ng.dot(d).abs() / (hit.t * hit.t),
+                            None => 0.0,
+                        },
+                    };
+                    let shading = Shading {
+                        vertex: here,
+                        origin,
+                        frame,
+                        wo,
+                        brdf,
+                    };
+                    radiance += throughput * self.direct_light(&shading, rng, record, counts);
+                    // The beam strategy makes the path two vertices longer: only where a bounce
+                    // could have found the same light within the bounce limit.
+                    if !self.portals.is_empty() && bounce + 1 < self.max_bounces {
+                        radiance += throughput * self.beam_light(&shading, rng, counts);
+                    }
 
                     let lobe = rng.uniform();
                     let u = rng.uniform2();
@@ -242,6 +317,7 @@ impl Tracer {
                     }
                     throughput *= f * (wi_local.z / pdf);
                     prev_pdf = pdf;
+                    last = Some(here);
                     bounce += 1;
                     if bounce >= ROULETTE_AFTER {
                         let q = throughput.max_element().min(0.95);
@@ -262,29 +338,61 @@ impl Tracer {
         }
     }
 
+    /// Density per solid angle of the environment's sample from `p` in direction `d`: its own
+    /// importance sampling, or with portals an even mixture of that and sampling through them.
+    fn env_pdf(&self, p: Vec3A, d: Vec3A) -> f32 {
+        if self.portals.is_empty() {
+            self.env.pdf(d)
+        } else {
+            0.5 * (self.env.pdf(d) + self.portals.direction_pdf(p, d))
+        }
+    }
+
+    /// MIS weight of `path` for light from a distant light arriving at the vertex `y` along
+    /// `to_light`, from the light's sampling density `s` and `y`'s BRDF density `c` for that
+    /// direction. Without a beam strategy that could have found `y` (no portals, `y` the
+    /// primary vertex, or no opening between `y` and the light) the usual two-way weight.
+    fn distant_weight(
+        &self,
+        path: DistantPath,
+        y: &Vertex,
+        to_light: Vec3A,
+        s: f32,
+        c: f32,
+    ) -> f32 {
+        let b = if self.portals.is_empty() || y.area_pdf <= 0.0 {
+            0.0
+        } else {
+            self.portals
+                .beam_area_pdf(y.position, y.geometric_normal, -to_light)
+        };
+        match path {
+            _ if b > 0.0 => distant_path_weight(path, y.area_pdf, b, s, c),
+            DistantPath::BounceThenLight => power_heuristic(s, c),
+            DistantPath::TwoBounces => power_heuristic(c, s),
+            DistantPath::Beam => 0.0,
+        }
+    }
+
     /// Next-event estimation at a surface point: one sample of every light and of the
-    /// environment, MIS-weighted against BRDF sampling.
-    #[allow(clippy::too_many_arguments)]
+    /// environment, MIS-weighted against BRDF sampling (and, for directional lights with
+    /// portals, against the beam strategy).
     fn direct_light(
         &self,
-        p: &Vec3A,
-        origin: Vec3A,
-        ng: Vec3A,
-        frame: &Frame,
-        wo: Vec3A,
-        brdf: &Brdf,
+        at: &Shading,
         rng: &mut Rng,
         mut record: Option<&mut [ShadowSums]>,
         counts: &mut RayCounts,
     ) -> Vec3A {
+        let (p, ng) = (at.vertex.position, at.vertex.geometric_normal);
         let mut sum = Vec3A::ZERO;
         for (i, e) in self.emitters.iter().enumerate() {
             let u = rng.uniform2();
-            let Some(s) = e.sample(*p, u) else { continue };
+            let Some(s) = e.sample(p, u) else { continue };
             let front = s.wi.dot(ng) > 0.0;
-            let wi = frame.to_local(s.wi);
+            let wi = at.frame.to_local(s.wi);
             let (f, brdf_pdf) = if front {
-                brdf.eval(wo, wi)
+                at.brdf.eval(at.wo, wi)
             } else {
                 (Vec3A::ZERO, 0.0)
             };
@@ -297,7 +405,9 @@ impl Tracer {
                 continue;
             }
             counts.shadow += 1;
-            let visible = !self.geometry.occluded(origin, s.wi, s.dist * (1.0 - 1e-4));
+            let visible = !self
+                .geometry
+                .occluded(at.origin, s.wi, s.dist * (1.0 - 1e-4));
             if let Some(r) = record.as_deref_mut() {
                 let w = (luminance(s.le) / s.pdf) as f64;
                 r[i][1] += w;
@@ -306,28 +416,141 @@ impl Tracer {
                 }
             }
             if contributes && visible {
-                let w = if s.delta {
-                    1.0
-                } else {
-                    power_heuristic(s.pdf, brdf_pdf)
-                };
+                let w = self.light_sample_weight(e, &s, brdf_pdf, &at.vertex);
                 sum += f * s.le * (wi.z * w / s.pdf);
             }
         }
         if !self.env.is_black() {
             let u = rng.uniform2();
-            if let Some((wi_world, le, pdf)) = self.env.sample(u) {
-                let wi = frame.to_local(wi_world);
-                if wi_world.dot(ng) > 0.0 && wi.z > 0.0 {
-                    let (f, brdf_pdf) = brdf.eval(wo, wi);
+            let sample = if self.portals.is_empty() {
+                self.env.sample(u)
+            } else if rng.uniform() < 0.5 {
+                let pick = rng.uniform();
+                self.portals
+                    .sample_direction(p, pick, u)
+                    .map(|(wi, _)| (wi, self.env.radiance(wi), 0.0))
+            } else {
+                self.env.sample(u)
+            };
+            if let Some((wi_world, le, _)) = sample {
+                let pdf = self.env_pdf(p, wi_world);
+                let wi = at.frame.to_local(wi_world);
+                if pdf > 0.0 && wi_world.dot(ng) > 0.0 && wi.z > 0.0 {
+                    let (f, brdf_pdf) = at.brdf.eval(at.wo, wi);
                     if f != Vec3A::ZERO && le != Vec3A::ZERO {
                         counts.shadow += 1;
-                        if !self.geometry.occluded(origin, wi_world, f32::INFINITY) {
+                        if !self.geometry.occluded(at.origin, wi_world, f32::INFINITY) {
                             sum += f * le * (wi.z * power_heuristic(pdf, brdf_pdf) / pdf);
                         }
                     }
                 }
             }
+        }
+        sum
+    }
+
+    /// MIS weight of a light's own sample `s` at `y` against the BRDF's density `brdf_pdf` for
+    /// the same direction, and for a directional light with portals also against the beam
+    /// strategy at the vertex before `y`.
+    fn light_sample_weight(&self, e: &Emitter, s: &LightSample, brdf_pdf: f32, y: &Vertex) -> f32 {
+        match e {
+            Emitter::Directional { .. } if s.delta => {
+                self.distant_weight(DistantPath::BounceThenLight, y, s.wi, 1.0, 0.0)
+            }
+            Emitter::Directional { .. } => {
+                self.distant_weight(DistantPath::BounceThenLight, y, s.wi, s.pdf, brdf_pdf)
+            }
+            _ if s.delta => 1.0,
+            _ => power_heuristic(s.pdf, brdf_pdf),
+        }
+    }
+
+    /// The beam strategy at a shaded point `x`: for every directional light, a point where its
+    /// beam passes a portal, the first surface `y` along the beam from there, and `y`'s reflection
+    /// of that light towards `x`, MIS-weighted ([`DistantPath`]).
+    fn beam_light(&self, at: &Shading, rng: &mut Rng, counts: &mut RayCounts) -> Vec3A {
+        let (x, ng) = (at.vertex.position, at.vertex.geometric_normal);
+        let mut sum = Vec3A::ZERO;
+        for e in &self.emitters {
+            if !matches!(e, Emitter::Directional { .. }) {
+                continue;
+            }
+            let u_light = rng.uniform2();
+            let pick = rng.uniform();
+            let u_portal = rng.uniform2();
+            let Some(s) = e.sample(x, u_light) else {
+                continue;
+            };
+            if s.le == Vec3A::ZERO {
+                continue;
+            }
+            let travel = -s.wi;
+            let Some(q) = self.portals.sample_beam(travel, pick, u_portal) else {
+                continue;
+            };
+            counts.shadow += 1;
+            if self.geometry.occluded(q, s.wi, f32::INFINITY) {
+                continue;
+            }
+            // Like the light's own shadow rays, the beam passes through emitters.
+            counts.closest += 1;
+            let Some(hit) = self.geometry.intersect(q, travel, f32::INFINITY) else {
+                continue;
+            };
+            let y = self.geometry.surface_point(q, travel, hit);
+            let v = y.position - x;
+            let r2 = v.length_squared();
+            if !(r2.is_finite() && r2 > 1e-12) {
+                continue;
+            }
+            let r = r2.sqrt();
+            let to_y = v / r;
+            let cos_y = -to_y.dot(y.geometric_normal);
+            if to_y.dot(ng) <= 0.0 || cos_y <= 0.0 {
+                continue;
+            }
+            let wi = at.frame.to_local(to_y);
+            if wi.z <= 0.0 {
+                continue;
+            }
+            let (f_x, brdf_pdf_x) = at.brdf.eval(at.wo, wi);
+            let material = self.geometry.material(y.object);
+            let brdf_y = Brdf::new(
+                y.base_color,
+                material.metallic,
+                material.roughness,
+                material.specular,
+            );
+            let frame_y = Frame::new(y.shading_normal);
+            let (wo_y, wi_y) = (frame_y.to_local(-to_y), frame_y.to_local(s.wi));
+            if wo_y.z <= 0.0 || wi_y.z <= 0.0 {
+                continue;
+            }
+            let (f_y, brdf_pdf_y) = brdf_y.eval(wo_y, wi_y);
+            if f_x == Vec3A::ZERO || f_y == Vec3A::ZERO {
+                continue;
+            }
+            let b = self
+                .portals
+                .beam_area_pdf(y.position, y.geometric_normal, travel);
+            if !(b.is_finite() && b > 0.0) {
+                continue;
+            }
+            let a = brdf_pdf_x * cos_y / r2;
+            let (light_pdf, brdf_pdf_y) = if s.delta {
+                (1.0, 0.0)
+            } else {
+                (s.pdf, brdf_pdf_y)
+            };
+            let w = distant_path_weight(DistantPath::Beam, a, b, light_pdf, brdf_pdf_y);
+            if w <= 0.0 {
+                continue;
+            }
+            counts.shadow += 1;
+            if self.geometry.occluded(at.origin, to_y, r * (1.0 - 1e-4)) {
+                continue;
+            }
+            sum += f_x * f_y * s.le * (wi.z * wi_y.z * cos_y * w / (s.pdf * r2 * b));
         }
         sum
     }

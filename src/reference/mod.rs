@@ -6,10 +6,11 @@
 //! embedded default scene of the demo (no downloaded data needed).
 //!
 //! - [`Scene`]: the description (serde/JSON): a rectified stereo rig, objects with glTF
-//!   metallic-roughness materials and procedural textures, rect/sphere/directional lights and an
-//!   environment. [`builtin`] gives the built-in scenes ([`BUILTIN_SCENES`]).
+//!   metallic-roughness materials and procedural textures, rect/sphere/directional lights, an
+//!   environment, and [`Portal`]s (openings that distant light is sampled through). [`builtin`]
+//!   gives the built-in scenes ([`BUILTIN_SCENES`]).
 //! - [`render`]: both views by path tracing (next-event estimation with multiple importance
-//!   sampling, Russian roulette, obvhs CWBVH), plus the ground truth → [`Images`], which
+//!   sampling, portals, Russian roulette, obvhs CWBVH), plus the ground truth → [`Images`], which
 //!   [`Images::write_middlebury_layout`] writes as a Middlebury folder.
 //! - [`render_composite`]: the left view with and without inserted objects → [`Composite`];
 //!   `insert_artefact` (feature `gltf`) turns a loaded glTF artefact into such objects.
@@ -27,6 +28,7 @@ mod geometry;
 mod integrator;
 mod lights;
 mod outputs;
+mod portals;
 mod probe;
 mod sampling;
 mod shapes;
@@ -37,8 +39,8 @@ pub use artefact_insert::insert_artefact;
 pub use builtin::{builtin, BUILTIN_SCENES};
 pub use composite::{insert_shape, render_composite, Composite, INSERT_SHAPES};
 pub use description::{
-    CameraRig, Environment, Light, Material, Object, Pattern, Scene, Shape, Texture, Transform,
-    MAX_SEGMENTS,
+    CameraRig, Environment, Light, Material, Object, Pattern, Portal, Scene, Shape, Texture,
+    Transform, MAX_SEGMENTS,
 };
 pub use geometry::MAX_TRIANGLES;
 pub use outputs::{Images, LightRecord, RenderStats, ENVIRONMENT_SIZE};
@@ -167,6 +169,7 @@ pub(crate) fn build_tracer(
         geometry: geometry::Geometry::build(&objects)?,
         emitters: scene.lights.iter().map(lights::Emitter::new).collect(),
         env: lights::EnvLight::new(&scene.environment)?,
+        portals: portals::Portals::new(&scene.portals),
         camera,
         max_bounces,
     })
