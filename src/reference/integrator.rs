@@ -675,7 +675,7 @@ impl Tracer {
                 Hit::Light(i, t) => {
                     let p = eye + d * t;
                     let n = match &self.emitters[i] {
-                        Emitter::Rect { normal, .. } => *normal,
+                        Emitter::Rect { shape, .. } => shape.normal,
                         Emitter::Sphere { center, .. } => (p - *center).normalize_or_zero(),
                         Emitter::Directional { .. } => -d,
                     };

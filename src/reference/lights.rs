@@ -26,15 +26,63 @@ pub(crate) struct LightSample {
     pub delta: bool,
 }
 
+/// The parallelogram `corner + u·eu + v·ev`, u, v ∈ [0, 1], of a rect light or a portal.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Parallelogram {
+    pub corner: Vec3A,
+    pub eu: Vec3A,
+    pub ev: Vec3A,
+    /// Unit normal along `eu × ev`.
+    pub normal: Vec3A,
+    pub area: f32,
+}
+
+impl Parallelogram {
+    /// The parallelogram with corners `center ± edge_u/2 ± edge_v/2` (of positive area).
+    pub(crate) fn centred(center: [f32; 3], edge_u: [f32; 3], edge_v: [f32; 3]) -> Parallelogram {
+        let (eu, ev) = (Vec3A::from(edge_u), Vec3A::from(edge_v));
+        let cross = eu.cross(ev);
+        Parallelogram {
+            corner: Vec3A::from(center) - 0.5 * eu - 0.5 * ev,
+            eu,
+            ev,
+            normal: cross.normalize(),
+            area: cross.length(),
+        }
+    }
+
+    /// The point at parameters `u` ∈ [0, 1]².
+    pub(crate) fn point(&self, u: Vec2) -> Vec3A {
+        self.corner + self.eu * u.x + self.ev * u.y
+    }
+
+    /// Ray parameter at which `o + t·d` passes through the parallelogram, from either side, if
+    /// it does at `t` in (0, tmax).
+    pub(crate) fn crossing(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<f32> {
+        let denom = d.dot(self.normal);
+        if denom.abs() < 1e-12 {
+            return None;
+        }
+        let t = (self.corner - o).dot(self.normal) / denom;
+        if !(t > 0.0 && t < tmax) {
+            return None;
+        }
+        let q = o + d * t - self.corner;
+        let (eu, ev) = (self.eu, self.ev);
+        let (uu, uv, vv) = (eu.dot(eu), eu.dot(ev), ev.dot(ev));
+        let (qu, qv) = (q.dot(eu), q.dot(ev));
+        let det = uu * vv - uv * uv;
+        let a = (qu * vv - qv * uv) / det;
+        let b = (qv * uu - qu * uv) / det;
+        ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
+    }
+}
+
 /// One light in world space, ready to sample.
 #[derive(Debug, Clone)]
 pub(crate) enum Emitter {
     Rect {
-        corner: Vec3A,
-        eu: Vec3A,
-        ev: Vec3A,
-        normal: Vec3A,
-        area: f32,
+        shape: Parallelogram,
         radiance: Vec3A,
     },
     Sphere {
@@ -60,18 +108,10 @@ impl Emitter {
                 edge_u,
                 edge_v,
                 radiance,
-            } => {
-                let (eu, ev) = (Vec3A::from(*edge_u), Vec3A::from(*edge_v));
-                let cross = eu.cross(ev);
-                Emitter::Rect {
-                    corner: Vec3A::from(*center) - 0.5 * eu - 0.5 * ev,
-                    eu,
-                    ev,
-                    normal: cross.normalize(),
-                    area: cross.length(),
-                    radiance: Vec3A::from(*radiance),
-                }
-            }
+            } => Emitter::Rect {
+                shape: Parallelogram::centred(*center, *edge_u, *edge_v),
+                radiance: Vec3A::from(*radiance),
+            },
             Light::Sphere {
                 center,
                 radius,
@@ -110,15 +150,8 @@ impl Emitter {
     /// one-sided rect, `p` inside a sphere light).
     pub(crate) fn sample(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
         match self {
-            Emitter::Rect {
-                corner,
-                eu,
-                ev,
-                normal,
-                area,
-                radiance,
-            } => {
-                let q = *corner + *eu * u.x + *ev * u.y;
+            Emitter::Rect { shape, radiance } => {
+                let q = shape.point(u);
                 let v = q - p;
                 let d2 = v.length_squared();
                 if d2 <= 0.0 {
@@ -126,7 +159,7 @@ impl Emitter {
                 }
                 let dist = d2.sqrt();
                 let wi = v / dist;
-                let cos_l = -wi.dot(*normal);
+                let cos_l = -wi.dot(shape.normal);
                 if cos_l <= 1e-7 {
                     return None;
                 }
@@ -134,7 +167,7 @@ impl Emitter {
                     wi,
                     dist,
                     le: *radiance,
-                    pdf: d2 / (area * cos_l),
+                    pdf: d2 / (shape.area * cos_l),
                     delta: false,
                 })
             }
@@ -196,29 +229,7 @@ impl Emitter {
     /// Ray parameter of the nearest hit of this light within (0, tmax), for rect and sphere lights.
     pub(crate) fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<f32> {
         match self {
-            Emitter::Rect {
-                corner,
-                eu,
-                ev,
-                normal,
-                ..
-            } => {
-                let denom = d.dot(*normal);
-                if denom.abs() < 1e-12 {
-                    return None;
-                }
-                let t = (*corner - o).dot(*normal) / denom;
-                if !(t > 0.0 && t < tmax) {
-                    return None;
-                }
-                let q = o + d * t - *corner;
-                let (uu, uv, vv) = (eu.dot(*eu), eu.dot(*ev), ev.dot(*ev));
-                let (qu, qv) = (q.dot(*eu), q.dot(*ev));
-                let det = uu * vv - uv * uv;
-                let a = (qu * vv - qv * uv) / det;
-                let b = (qv * uu - qu * uv) / det;
-                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
-            }
+            Emitter::Rect { shape, .. } => shape.crossing(o, d, tmax),
             Emitter::Sphere { center, radius, .. } => {
                 let oc = o - *center;
                 let b = oc.dot(d);
@@ -239,17 +250,12 @@ impl Emitter {
     /// density with which `sample` from `p` would have produced this direction.
     pub(crate) fn hit(&self, p: Vec3A, d: Vec3A, t: f32) -> (Vec3A, f32) {
         match self {
-            Emitter::Rect {
-                normal,
-                area,
-                radiance,
-                ..
-            } => {
-                let cos_l = -d.dot(*normal);
+            Emitter::Rect { shape, radiance } => {
+                let cos_l = -d.dot(shape.normal);
                 if cos_l <= 1e-7 {
                     (Vec3A::ZERO, 0.0)
                 } else {
-                    (*radiance, t * t / (area * cos_l))
+                    (*radiance, t * t / (shape.area * cos_l))
                 }
             }
             Emitter::Sphere {

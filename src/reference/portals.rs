@@ -19,75 +19,26 @@
 use glam::{Vec2, Vec3A};
 
 use super::description::Portal;
+use super::lights::Parallelogram;
 
-/// One opening: the parallelogram `corner + u·eu + v·ev`, u, v ∈ [0, 1].
-#[derive(Debug, Clone, Copy)]
-struct Opening {
-    corner: Vec3A,
-    eu: Vec3A,
-    ev: Vec3A,
-    normal: Vec3A,
-    area: f32,
-}
-
-impl Opening {
-    fn point(&self, u: Vec2) -> Vec3A {
-        self.corner + self.eu * u.x + self.ev * u.y
-    }
-
-    /// Distance along `o + t·d` (d unit) at which the ray passes through the opening, if it does
-    /// at t > 0, from either side.
-    fn crossing(&self, o: Vec3A, d: Vec3A) -> Option<f32> {
-        let denom = d.dot(self.normal);
-        if denom.abs() < 1e-9 {
-            return None;
-        }
-        let t = (self.corner - o).dot(self.normal) / denom;
-        if !(t > 0.0 && t.is_finite()) {
-            return None;
-        }
-        let q = o + d * t - self.corner;
-        let (uu, uv, vv) = (
-            self.eu.dot(self.eu),
-            self.eu.dot(self.ev),
-            self.ev.dot(self.ev),
-        );
-        let (qu, qv) = (q.dot(self.eu), q.dot(self.ev));
-        let det = uu * vv - uv * uv;
-        let a = (qu * vv - qv * uv) / det;
-        let b = (qv * uu - qu * uv) / det;
-        ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
-    }
-
-    /// Area of the opening seen across a beam travelling along `travel` (unit).
-    fn cross_section(&self, travel: Vec3A) -> f32 {
-        self.area * self.normal.dot(travel).abs()
-    }
+/// Area of an opening seen across a beam travelling along `travel` (unit).
+fn cross_section(opening: &Parallelogram, travel: Vec3A) -> f32 {
+    opening.area * opening.normal.dot(travel).abs()
 }
 
 /// The scene's openings, ready to sample.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Portals {
-    openings: Vec<Opening>,
+    openings: Vec<Parallelogram>,
     total_area: f32,
 }
 
 impl Portals {
     /// Openings of a validated scene (each of positive area).
     pub(crate) fn new(portals: &[Portal]) -> Portals {
-        let openings: Vec<Opening> = portals
+        let openings: Vec<Parallelogram> = portals
             .iter()
-            .map(|p| {
-                let (eu, ev) = (Vec3A::from(p.edge_u), Vec3A::from(p.edge_v));
-                let cross = eu.cross(ev);
-                Opening {
-                    corner: Vec3A::from(p.center) - 0.5 * eu - 0.5 * ev,
-                    eu,
-                    ev,
-                    normal: cross.normalize(),
-                    area: cross.length(),
-                }
-            })
+            .map(|p| Parallelogram::centred(p.center, p.edge_u, p.edge_v))
             .collect();
         let total_area = openings.iter().map(|o| o.area).sum();
         Portals {
@@ -102,7 +53,12 @@ impl Portals {
 
     /// Picks the opening under `pick` ∈ [0, 1) with probability proportional to `weight`, and
     /// returns it with `pick` rescaled to [0, 1) within its share.
-    fn choose(&self, pick: f32, weight: impl Fn(&Opening) -> f32, total: f32) -> &Opening {
+    fn choose(
+        &self,
+        pick: f32,
+        weight: impl Fn(&Parallelogram) -> f32,
+        total: f32,
+    ) -> &Parallelogram {
         let mut target = pick * total;
         for o in &self.openings {
             let w = weight(o);
@@ -142,7 +98,7 @@ impl Portals {
         self.openings
             .iter()
             .filter_map(|o| {
-                let t = o.crossing(p, d)?;
+                let t = o.crossing(p, d, f32::INFINITY)?;
                 let cos = o.normal.dot(d).abs();
                 (cos > 1e-6).then(|| t * t / (self.total_area * cos))
             })
@@ -158,13 +114,13 @@ impl Portals {
         if !(total.is_finite() && total > 0.0) {
             return None;
         }
-        let opening = self.choose(pick, |o| o.cross_section(travel), total);
+        let opening = self.choose(pick, |o| cross_section(o, travel), total);
         Some(opening.point(u))
     }
 
     /// Total cross-section of the openings across a beam travelling along `travel` (unit), m².
     pub(crate) fn beam_cross_section(&self, travel: Vec3A) -> f32 {
-        self.openings.iter().map(|o| o.cross_section(travel)).sum()
+        self.openings.iter().map(|o| cross_section(o, travel)).sum()
     }
 
     /// Density per unit area with which [`Portals::sample_beam`] followed by the first hit
@@ -179,7 +135,7 @@ impl Portals {
         let crossed = self
             .openings
             .iter()
-            .filter(|o| o.crossing(y, -travel).is_some())
+            .filter(|o| o.crossing(y, -travel, f32::INFINITY).is_some())
             .count();
         crossed as f32 * normal.dot(travel).abs() / total
     }
