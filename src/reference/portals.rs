@@ -51,8 +51,8 @@ impl Portals {
         self.openings.is_empty()
     }
 
-    /// Picks the opening under `pick` ∈ [0, 1) with probability proportional to `weight`, and
-    /// returns it with `pick` rescaled to [0, 1) within its share.
+    /// The opening that `pick` ∈ [0, 1) falls on when the openings share [0, 1) in proportion
+    /// to `weight` (summing to `total`).
     fn choose(
         &self,
         pick: f32,

@@ -609,6 +609,15 @@ fn bad_input_is_rejected_with_a_named_reason() {
         transform: Transform::default(),
     });
     assert!(err(&s).contains("refers to vertex"));
+    let mut s = base.clone();
+    s.portals.push(Portal {
+        center: [0.0, 1.0, 0.0],
+        edge_u: [1.0, 0.0, 0.0],
+        edge_v: [2.0, 0.0, 0.0],
+    });
+    assert!(err(&s).contains("portal 0: portal area"), "{}", err(&s));
+    s.portals[0].edge_v = [0.0, f32::NAN, 1.0];
+    assert!(err(&s).contains("portal 0: edge_v must be finite"));
     assert!(render(&base, &spp(0, 1)).is_err());
     assert!(render(
         &base,
