@@ -48,8 +48,9 @@
 //! off against the ambient term's and the few regions it lights.
 //!
 //! When nothing can be inferred (too few usable pixels, or no candidate light explains the shading
-//! better than ambient light alone), the thesis' fallback is used: one light above the scene,
-//! and [`LightFit::fallback_used`] says so, so the caller can warn.
+//! better than ambient light alone and the in-view sources, if any, are all fitted to no light),
+//! the thesis' fallback is used: one light above the scene, and [`LightFit::fallback_used`] says
+//! so, so the caller can warn.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -740,7 +741,9 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             })
             .collect()
     };
-    let fallback = |samples_used: usize| -> LightFit {
+    // `kept`: the in-view sources that stay, with their detected intensities (the fallback only
+    // stands in for what could not be inferred).
+    let fallback = |samples_used: usize, kept: &[Light]| -> LightFit {
         // The thesis' fallback: one light above the scene, half of the mean brightness from it.
         let mean = if luma.is_empty() {
             [0.0; 3]
@@ -760,9 +763,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             mean.map(|v| std::f32::consts::PI * 0.5 * v / options.albedo),
         );
         main.confidence = 0.1;
-        // Sources seen in the photo stay (with their detected intensities): the fallback only
-        // stands in for what could not be inferred.
-        let mut lights = in_view.to_vec();
+        let mut lights = kept.to_vec();
         lights.push(main);
         LightFit {
             main,
@@ -775,7 +776,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         }
     };
     if samples.len() < 50 || n_regions == 0 || luma.iter().all(|v| *v <= 1e-6) {
-        return Ok(fallback(samples.len()));
+        return Ok(fallback(samples.len(), in_view));
     }
 
     // The in-view lights' direct light on each sample facing them, at intensities `x` (their
@@ -974,7 +975,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         (d, _) => d,
     };
     let Some((_, direction, distance)) = best else {
-        return Ok(fallback(samples.len()));
+        return Ok(fallback(samples.len(), in_view));
     };
     // Angular size (seen from the insertion point): a cone of directions for a few widths; the
     // softest that does not explain the photo worse wins.
@@ -999,7 +1000,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let keep_fitted = score < baseline_score * (1.0 - options.min_improvement as f64)
         && score < MAX_EXPLAINED_RESIDUAL;
     if !keep_fitted && in_view.is_empty() {
-        return Ok(fallback(samples.len()));
+        return Ok(fallback(samples.len(), in_view));
     }
 
     // Magnitudes come from the luminance fit. Colour: with the luminance fit's region albedos
@@ -1012,6 +1013,12 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     // seen from above, red twice blue).
     let g = build(keep_fitted.then_some(&column));
     let lum_fit = trimmed(&g, &luma, &regions, n_regions, options.albedo);
+    // In-view sources that the fit gives no light explain nothing (a sunlit patch taken for a
+    // lamp): with no fitted light either, nothing was inferred, which is what the fallback is
+    // for, and those sources are not handed on as lights.
+    if !keep_fitted && lum_fit.x[..in_view.len()].iter().all(|x| *x <= 0.0) {
+        return Ok(fallback(samples.len(), &[]));
+    }
     let (_, rho) = projected(&g, &luma, &regions, n_regions, &lum_fit.x);
     let channel: Vec<Vec<f64>> = (0..3)
         .map(|k| {
@@ -1094,7 +1101,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             };
             e(a).total_cmp(&e(b))
         })
-        .unwrap_or_else(|| fallback(0).main);
+        .unwrap_or_else(|| fallback(0, in_view).main);
     let residual = if keep_fitted {
         alternate(&g, &luma, &regions, n_regions, options.albedo).residual
     } else {
@@ -1526,6 +1533,28 @@ mod tests {
         assert!(fit.fallback_used);
         assert!(Vec3::from(fit.main.direction).abs_diff_eq(-Vec3::Y, 1e-5));
         fit.main.validate().unwrap();
+    }
+
+    #[test]
+    fn an_in_view_source_that_lights_nothing_does_not_stand_for_an_inference() {
+        // The ambient-only room with a false source (a sunlit patch taken for a lamp) under the
+        // floor, where no sample sees it: its fitted intensity is zero and no out-of-view light
+        // explains anything, so nothing was inferred. (Before, the zero-intensity source became
+        // the main light and the fallback was not used.)
+        let r = room(Vec3::Y, 0.3, 0.0);
+        let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
+        let false_source = [Light::point([0.0, -1.5, -4.0], 0.1, [2.0; 3])];
+        let fit = fit_lights(
+            &inputs(&r, &regions, None),
+            &false_source,
+            &Default::default(),
+        )
+        .unwrap();
+        assert!(fit.fallback_used, "{fit:?}");
+        assert!(luminance(fit.main.intensity) > 0.0, "{fit:?}");
+        // The false source is not handed on as a light; a real lamp that lights the room is
+        // (`finds_an_out_of_view_sun_beside_a_lamp_in_view`).
+        assert_eq!(fit.lights, vec![fit.main], "{fit:?}");
     }
 
     #[test]
