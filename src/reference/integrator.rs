@@ -424,16 +424,19 @@ impl Tracer {
             let u = rng.uniform2();
             let sample = if self.portals.is_empty() {
                 self.env.sample(u)
-            } else if rng.uniform() < 0.5 {
-                let pick = rng.uniform();
-                self.portals
-                    .sample_direction(p, pick, u)
-                    .map(|(wi, _)| (wi, self.env.radiance(wi), 0.0))
             } else {
-                self.env.sample(u)
+                // The even mixture's density, whichever half drew the direction.
+                let drawn = if rng.uniform() < 0.5 {
+                    let pick = rng.uniform();
+                    self.portals
+                        .sample_direction(p, pick, u)
+                        .map(|wi| (wi, self.env.radiance(wi)))
+                } else {
+                    self.env.sample(u).map(|(wi, le, _)| (wi, le))
+                };
+                drawn.map(|(wi, le)| (wi, le, self.env_pdf(p, wi)))
             };
-            if let Some((wi_world, le, _)) = sample {
-                let pdf = self.env_pdf(p, wi_world);
+            if let Some((wi_world, le, pdf)) = sample {
                 let wi = at.frame.to_local(wi_world);
                 if pdf > 0.0 && wi_world.dot(ng) > 0.0 && wi.z > 0.0 {
                     let (f, brdf_pdf) = at.brdf.eval(at.wo, wi);

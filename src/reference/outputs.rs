@@ -10,7 +10,7 @@ use super::integrator::Camera;
 use super::lights::equirect_to_direction;
 use crate::camera::StereoCalibration;
 use crate::error::{Error, Result};
-use crate::image::{Image, PixelFormat, Raster};
+use crate::image::{rec709_luma, Image, PixelFormat, Raster};
 
 /// Size of the environment map written next to the images (equirectangular, camera frame).
 pub const ENVIRONMENT_SIZE: (usize, usize) = (256, 128);
@@ -225,6 +225,30 @@ pub(crate) fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
 }
 
 impl Images {
+    /// How noisy the left view is: the median over its pixels (those with a finite, positive
+    /// luminance and a finite variance) of the standard error of the pixel's luminance relative to
+    /// that luminance, `√variance / luminance` (the lower median for an even count). `None` with
+    /// one sample per pixel (no variance) or no such pixel.
+    pub fn median_relative_noise(&self) -> Option<f64> {
+        let variance = self.variance.as_ref()?;
+        let mut relative: Vec<f64> = variance
+            .pixels()
+            .iter()
+            .zip(self.left.pixels())
+            .filter_map(|(&v, &rgb)| {
+                let luma = rec709_luma(rgb);
+                (v.is_finite() && v >= 0.0 && luma.is_finite() && luma > 0.0)
+                    .then(|| (v as f64).sqrt() / luma as f64)
+            })
+            .collect();
+        if relative.is_empty() {
+            return None;
+        }
+        relative.sort_by(f64::total_cmp);
+        // The rank ⌈n/2⌉ (1-based), as the evals' percentiles take it.
+        Some(relative[relative.len().div_ceil(2) - 1])
+    }
+
     /// `calib.txt` in Middlebury's format (baseline in millimetres; ndisp the largest disparity
     /// rounded up to a multiple of 16).
     pub fn calib_txt(&self) -> String {

@@ -753,29 +753,12 @@ fn block_luminance(images: &Images, x0: usize, y0: usize, size: usize) -> (f64, 
     let (mut sum, mut var) = (0.0f64, 0.0f64);
     for y in y0..y0 + size {
         for x in x0..x0 + size {
-            let [r, g, b] = *images.left.get(x, y);
-            sum += 0.2126 * r as f64 + 0.7152 * g as f64 + 0.0722 * b as f64;
+            sum += crate::image::rec709_luma(*images.left.get(x, y)) as f64;
             var += *variance.get(x, y) as f64;
         }
     }
     let n = (size * size) as f64;
     (sum / n, var / (n * n))
-}
-
-fn median_relative_noise(images: &Images) -> f64 {
-    let variance = images.variance.as_ref().unwrap();
-    let mut r: Vec<f64> = images
-        .left
-        .pixels()
-        .iter()
-        .zip(variance.pixels())
-        .filter_map(|([r, g, b], v)| {
-            let l = 0.2126 * r + 0.7152 * g + 0.0722 * b;
-            (l > 1e-6).then(|| (v.max(0.0) as f64).sqrt() / l as f64)
-        })
-        .collect();
-    r.sort_by(f64::total_cmp);
-    r[r.len() / 2]
 }
 
 /// The window scene lit through its portal converges to the same image as without the portal
@@ -832,8 +815,8 @@ fn portals_lower_the_noise_without_changing_the_image() {
         );
         let cheap = render(&without, &options(96)).unwrap();
         let (noisy, clean) = (
-            median_relative_noise(&cheap),
-            median_relative_noise(&portal),
+            cheap.median_relative_noise().unwrap(),
+            portal.median_relative_noise().unwrap(),
         );
         assert!(
             clean < 0.5 * noisy,

@@ -15,7 +15,7 @@ use std::time::Instant;
 use glam::{Mat4, Vec2, Vec3};
 use parallax::camera::Camera;
 use parallax::context::{Context, ContextOptions};
-use parallax::image::{rec709_luma, Image, Raster};
+use parallax::image::{Image, Raster};
 use parallax::mesh::{self, PlaceOptions, Surfaces};
 use parallax::reference::{self, Images, RenderOptions, SampleBudget, Shape};
 use parallax::scene::Scene;
@@ -373,7 +373,7 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
         width: w as u32,
         height: h as u32,
         spp: args.spp,
-        render_noise: render_noise(&images),
+        render_noise: images.median_relative_noise(),
         render_s,
         reconstruct_s,
         depth_error: spread(scores.iter().filter_map(|s| s.0).collect()),
@@ -395,23 +395,6 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
             })
             .collect(),
     })
-}
-
-/// Median relative standard error `√variance / luminance` of the left view's pixels (those with
-/// a finite, positive luminance and a finite variance); `None` without a variance.
-fn render_noise(images: &Images) -> Option<f64> {
-    let variance = images.variance.as_ref()?;
-    let relative: Vec<f64> = variance
-        .pixels()
-        .iter()
-        .zip(images.left.pixels())
-        .filter_map(|(&v, &rgb)| {
-            let luma = rec709_luma(rgb);
-            (v.is_finite() && v >= 0.0 && luma.is_finite() && luma > 0.0)
-                .then(|| (v as f64).sqrt() / luma as f64)
-        })
-        .collect();
-    spread(relative).map(|s| s.median)
 }
 
 /// The detected surface that matches `plane` (normal within [`MATCH_NORMAL_DEG`] of the true up,
