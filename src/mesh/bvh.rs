@@ -3,7 +3,7 @@
 
 use std::time::Duration;
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::{builder::build_cwbvh, CwBvh};
 use obvhs::ray::RayHit;
@@ -36,12 +36,8 @@ impl Ray {
         }
     }
 
-    /// obvhs' ray. A direction component of −0.0 becomes +0.0: obvhs derives the traversal
-    /// octant and the inverse direction from the sign bits separately, and a negative zero made
-    /// axis-aligned rays (e.g. a host's ray straight down) miss everything.
     fn to_obvhs(self) -> obvhs::ray::Ray {
-        let direction = self.direction + Vec3::ZERO;
-        obvhs::ray::Ray::new(self.origin.into(), direction.into(), 0.0, self.t_max)
+        obvhs_ray(self.origin.into(), self.direction.into(), self.t_max)
     }
 
     fn is_valid(&self) -> bool {
@@ -228,6 +224,14 @@ impl Bvh {
     pub fn occluded_batch(&self, rays: &[Ray]) -> Vec<bool> {
         rays.par_iter().map(|r| self.occluded(r)).collect()
     }
+}
+
+/// obvhs' ray from `origin` along `direction` up to `t_max`. A direction component of −0.0
+/// becomes +0.0: obvhs takes the traversal order from `direction < 0` but the inverse direction
+/// from the sign bit, so a negative zero swaps a box's near and far planes and axis-aligned rays
+/// (a host's ray straight down, a shadow ray towards a sun straight overhead) miss everything.
+pub(crate) fn obvhs_ray(origin: Vec3A, direction: Vec3A, t_max: f32) -> obvhs::ray::Ray {
+    obvhs::ray::Ray::new(origin, direction + Vec3A::ZERO, 0.0, t_max)
 }
 
 /// The ray of the camera through image position `pixel` (continuous pixels: the centre of pixel

@@ -3,7 +3,7 @@
 
 use glam::{Mat3, Vec3, Vec3A};
 use obvhs::cwbvh::CwBvh;
-use obvhs::ray::{Ray, RayHit};
+use obvhs::ray::RayHit;
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 use std::time::Duration;
@@ -12,6 +12,7 @@ use super::description::{Material, Object};
 use super::shapes::tessellate;
 use super::textures;
 use crate::error::{Error, Result};
+use crate::mesh::bvh::obvhs_ray;
 
 /// The most triangles a scene may have (about 3 GB of triangles and attributes).
 pub const MAX_TRIANGLES: usize = 20_000_000;
@@ -152,7 +153,7 @@ impl Geometry {
     /// Nearest hit along `o + t·d`, `t` in (0, tmax).
     pub(crate) fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<SurfaceHit> {
         let bvh = self.bvh.as_ref()?;
-        let ray = Ray::new(o, d, 0.0, tmax);
+        let ray = obvhs_ray(o, d, tmax);
         let mut hit = RayHit::none();
         if bvh.ray_traverse(ray, &mut hit, |r, id| self.bvh_triangles[id].intersect(r)) {
             Some(SurfaceHit {
@@ -169,7 +170,7 @@ impl Geometry {
         let Some(bvh) = self.bvh.as_ref() else {
             return false;
         };
-        let ray = Ray::new(o, d, 0.0, tmax);
+        let ray = obvhs_ray(o, d, tmax);
         !bvh.ray_traverse_miss(ray, |r, id| self.bvh_triangles[id].intersect(r))
     }
 

@@ -869,3 +869,142 @@ fn wide_directional_light_over_a_white_floor_gives_e_over_pi() {
         "floor radiance {mean}, E/π = {expected}"
     );
 }
+
+/// Form factor from a surface element to a parallel rectangle `[x0, x1] × [z0, z1]` a distance
+/// `c` away, the element at the origin of those coordinates (Howell's catalogue, B-3, one
+/// rectangle per quadrant added with signs).
+fn form_factor_to_parallel_rectangle(x0: f64, x1: f64, z0: f64, z1: f64, c: f64) -> f64 {
+    // The rectangle from the foot point to (x, z), signed by its quadrant.
+    let corner = |x: f64, z: f64| {
+        let (a, b) = (x.abs() / c, z.abs() / c);
+        let (ra, rb) = ((1.0 + a * a).sqrt(), (1.0 + b * b).sqrt());
+        let f =
+            (a / ra * (b / ra).atan() + b / rb * (a / rb).atan()) / (2.0 * std::f64::consts::PI);
+        x.signum() * z.signum() * f
+    };
+    corner(x1, z1) - corner(x0, z1) - corner(x1, z0) + corner(x0, z0)
+}
+
+/// The beam strategy against a closed form. A sun straight overhead shines through a square
+/// skylight onto a white floor; the camera looks up at the white ceiling around the skylight,
+/// which the sun cannot reach, so each ceiling point's radiance (one bounce, nothing more) is
+/// `ρ_c·ρ_f·E·F/π`, with `F` the form factor from the point to the sunlit square. The three
+/// ways of finding that light (the beam through the skylight, a bounce to the floor and the
+/// sun's sample there, two bounces into the sun's disc) must add up to it: under a small
+/// skylight the beam carries nearly all of it, under a wide one the bounce competes.
+///
+/// It found that obvhs missed every shadow ray with a −0.0 direction component (towards a sun
+/// exactly overhead, 35× too much light reached the ceiling); see `mesh::bvh::obvhs_ray`.
+#[test]
+fn sunlight_through_a_skylight_bounces_onto_the_ceiling_by_its_form_factor() {
+    let (height, thickness, room) = (1.0f32, 0.002f32, 4.0f32);
+    let (irradiance, albedo) = (10.0f32, 0.8f32);
+    let slab = |centre: [f32; 3], size: [f32; 3]| Object {
+        name: "ceiling".into(),
+        shape: Shape::Box { size },
+        material: Material::lambert([albedo; 3]),
+        transform: Transform::at(centre[0], centre[1], centre[2]),
+    };
+    let y = height + 0.5 * thickness;
+    // (half the skylight's side, the camera's horizontal field of view): the wide skylight needs
+    // a wide view to see ceiling around it.
+    let cases = [(0.15f32, 0.0f32), (0.15, 0.53), (0.6, 0.0), (0.6, 0.53)];
+    for (half, sun_diameter) in cases {
+        let fov = if half < 0.5 { 50.0 } else { 110.0 };
+        let (side, rest) = (0.5 * room, 0.5 * room - half);
+        let scene = Scene {
+            name: "skylight".into(),
+            camera: CameraRig {
+                up: [0.0, 0.0, -1.0],
+                fov_x_deg: Some(fov),
+                ..rig(48, 36, [0.0, 0.05, 0.0], [0.0, 1.0, 0.0])
+            },
+            objects: vec![
+                Object {
+                    name: "floor".into(),
+                    // Narrower than the ceiling, so that no slanted ray of the sun's disc
+                    // reaches it past the ceiling's outer edge.
+                    shape: Shape::Plane {
+                        size: [room - 0.4, room - 0.4],
+                    },
+                    material: Material::lambert([albedo; 3]),
+                    transform: Transform::default(),
+                },
+                slab([0.0, y, -(half + side) / 2.0], [room, thickness, rest]),
+                slab([0.0, y, (half + side) / 2.0], [room, thickness, rest]),
+                slab(
+                    [-(half + side) / 2.0, y, 0.0],
+                    [rest, thickness, 2.0 * half],
+                ),
+                slab([(half + side) / 2.0, y, 0.0], [rest, thickness, 2.0 * half]),
+            ],
+            lights: vec![Light::Directional {
+                direction: [0.0, -1.0, 0.0],
+                irradiance: [irradiance; 3],
+                angular_diameter_deg: sun_diameter,
+            }],
+            environment: Environment::Black,
+            portals: vec![Portal {
+                center: [0.0, height + thickness, 0.0],
+                edge_u: [2.0 * half, 0.0, 0.0],
+                edge_v: [0.0, 0.0, 2.0 * half],
+            }],
+        };
+        let images = render(
+            &scene,
+            &RenderOptions {
+                seed: 11,
+                ..spp(256, 2)
+            },
+        )
+        .unwrap();
+        let variance = images.variance.as_ref().unwrap();
+        let (mut rendered, mut expected, mut var, mut n) = (0.0f64, 0.0f64, 0.0f64, 0usize);
+        let mut worst = 0.0f64;
+        for py in 0..images.depth.height() {
+            for px in 0..images.depth.width() {
+                if !images.depth.get(px, py).is_finite() {
+                    continue;
+                }
+                let p = world_point(&images, px, py);
+                assert!((p.y - height).abs() < 1e-3, "pixel ({px}, {py}) sees {p}");
+                // Pixels whose footprint may reach into the skylight are left out.
+                if p.x.abs().max(p.z.abs()) < half + 0.03 {
+                    continue;
+                }
+                let (x, zw) = (p.x as f64, p.z as f64);
+                let h = half as f64;
+                let f = form_factor_to_parallel_rectangle(
+                    -h - x,
+                    h - x,
+                    -h - zw,
+                    h - zw,
+                    height as f64,
+                );
+                let want = (albedo * albedo * irradiance) as f64 * f / std::f64::consts::PI;
+                let got = crate::image::rec709_luma(*images.left.get(px, py)) as f64;
+                let sigma = (*variance.get(px, py) as f64).sqrt();
+                worst = worst.max(((got - want) / sigma.max(1e-9)).abs());
+                rendered += got;
+                expected += want;
+                var += *variance.get(px, py) as f64;
+                n += 1;
+            }
+        }
+        assert!(n > 500, "{n} ceiling pixels");
+        let z = (rendered - expected) / var.sqrt();
+        eprintln!(
+            "skylight {half} m, sun {sun_diameter}°: ratio {:.4}, z {z:.2}, worst pixel |z| {worst:.2}",
+            rendered / expected
+        );
+        assert!(
+            (rendered / expected - 1.0).abs() < 0.01 && z.abs() < 4.0,
+            "skylight {half} m, sun {sun_diameter}°: ceiling {rendered:.4} rendered, {expected:.4} by the form \
+             factor (z = {z:.2}) over {n} pixels"
+        );
+        assert!(
+            worst < 5.5,
+            "skylight {half} m, sun {sun_diameter}°: worst pixel |z| {worst:.2}"
+        );
+    }
+}
