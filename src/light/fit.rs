@@ -171,7 +171,8 @@ pub struct LightFit {
     pub main: Light,
     /// Uniform ambient light as the diffuse radiance of a white surface (linear RGB).
     pub ambient: [f32; 3],
-    /// Every light: the in-view sources (re-scaled) and the fitted out-of-view light, if kept.
+    /// Every light: the in-view sources the fit gives light to (re-scaled; those it fits to no
+    /// light explain nothing and are left out), then the fitted out-of-view light, if kept.
     pub lights: Vec<Light>,
     /// True when nothing could be inferred and the main light is the "one light above the
     /// scene" fallback.
@@ -1014,8 +1015,8 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let g = build(keep_fitted.then_some(&column));
     let lum_fit = trimmed(&g, &luma, &regions, n_regions, options.albedo);
     // In-view sources that the fit gives no light explain nothing (a sunlit patch taken for a
-    // lamp): with no fitted light either, nothing was inferred, which is what the fallback is
-    // for, and those sources are not handed on as lights.
+    // lamp) and are not handed on as lights. With no fitted light either, nothing was inferred,
+    // which is what the fallback is for.
     if !keep_fitted && lum_fit.x[..in_view.len()].iter().all(|x| *x <= 0.0) {
         return Ok(fallback(samples.len(), &[]));
     }
@@ -1065,6 +1066,9 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let pi = std::f32::consts::PI;
     let mut lights = Vec::new();
     for (j, l) in in_view.iter().enumerate() {
+        if lum_fit.x[j] <= 0.0 {
+            continue;
+        }
         // E_j = I / π for a light at a position (diffuse radiance = ρ/π · I cosθ / r²).
         lights.push(Light {
             intensity: value(j).map(|v| v * pi),
@@ -1473,22 +1477,34 @@ mod tests {
         let to_sun = Vec3::new(0.6, 1.0, 0.4);
         let r = room_lit_by(&[(Lit::Bulb(lamp), 2.0), (Lit::Sun(to_sun), 2.0)], 0.1);
         let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
-        let in_view = [Light::point(lamp.to_array(), 0.1, [2.0; 3])];
+        let lamp_light = Light::point(lamp.to_array(), 0.1, [2.0; 3]);
         assert!(r.camera.project_to_pixel(lamp).is_some());
-        let fit = fit_lights(
-            &inputs(&r, &regions, Some(&r.shadow)),
-            &in_view,
-            &Default::default(),
-        )
-        .unwrap();
-        assert!(!fit.fallback_used);
-        assert_eq!(fit.lights.len(), 2, "{fit:?}");
-        assert_eq!(fit.main.kind, LightKind::Directional, "{fit:?}");
-        let error = (-Vec3::from(fit.main.direction))
-            .angle_between(to_sun.normalize())
-            .to_degrees();
-        // The issue's target for a light out of view (15° for the sun alone above).
-        assert!(error < 20.0, "{fit:?}: {error}°");
+        // Also with a false source inside the nearer box, which lights no sample (the box's
+        // faces turn away from it and hide it from everything else): it is fitted to no light
+        // and not handed on (before, it stayed in `lights` at zero intensity whenever the
+        // out-of-view light was kept).
+        let false_source = Light::point([-0.1, -0.6, -3.9], 0.1, [2.0; 3]);
+        for in_view in [vec![lamp_light], vec![lamp_light, false_source]] {
+            let fit = fit_lights(
+                &inputs(&r, &regions, Some(&r.shadow)),
+                &in_view,
+                &Default::default(),
+            )
+            .unwrap();
+            assert!(!fit.fallback_used);
+            assert_eq!(fit.lights.len(), 2, "{fit:?}");
+            assert!(
+                fit.lights.iter().all(|l| luminance(l.intensity) > 0.0),
+                "{fit:?}"
+            );
+            assert_eq!(fit.lights[0].position, lamp_light.position, "{fit:?}");
+            assert_eq!(fit.main.kind, LightKind::Directional, "{fit:?}");
+            let error = (-Vec3::from(fit.main.direction))
+                .angle_between(to_sun.normalize())
+                .to_degrees();
+            // The issue's target for a light out of view (15° for the sun alone above).
+            assert!(error < 20.0, "{fit:?}: {error}°");
+        }
     }
 
     #[test]
