@@ -4,12 +4,37 @@ use super::geometry::Vertex;
 
 /// Colour format of the artefact layer (premultiplied linear RGBA).
 pub(crate) const LAYER_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
-/// Shadow ratio format.
-pub(crate) const RATIO_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
-/// Artefact depth format.
-pub(crate) const ARTEFACT_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
-/// Shadow maps: linear distance from the light, metres.
-pub(crate) const SHADOW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+
+/// Formats of the float render targets that are read back or sampled as data.
+///
+/// WebGPU can render into 32-bit floats everywhere, but wgpu's OpenGL backend cannot where the
+/// driver lacks `EXT_color_buffer_float` (Mesa's llvmpipe through EGL, for one: only 16-bit
+/// floats are renderable there). The renderer then falls back to [`TargetFormats::FLOAT16`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct TargetFormats {
+    /// Shadow maps: linear distance from the light, metres.
+    pub shadow: wgpu::TextureFormat,
+    /// Shadow ratio (RGB, alpha unused).
+    pub ratio: wgpu::TextureFormat,
+    /// Artefact depth along the view axis, metres.
+    pub artefact_depth: wgpu::TextureFormat,
+}
+
+impl TargetFormats {
+    /// 32-bit floats: the default.
+    pub const FLOAT32: TargetFormats = TargetFormats {
+        shadow: wgpu::TextureFormat::R32Float,
+        ratio: wgpu::TextureFormat::Rgba32Float,
+        artefact_depth: wgpu::TextureFormat::R32Float,
+    };
+    /// 16-bit floats, for devices that cannot render into 32-bit ones: distances keep 11
+    /// significant bits (0.05 %, 2.4 mm at 5 m).
+    pub const FLOAT16: TargetFormats = TargetFormats {
+        shadow: wgpu::TextureFormat::R16Float,
+        ratio: wgpu::TextureFormat::Rgba16Float,
+        artefact_depth: wgpu::TextureFormat::R16Float,
+    };
+}
 /// Every depth buffer (reversed Z: 1 near, 0 far; compare `Greater`).
 pub(crate) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
@@ -94,6 +119,8 @@ pub(crate) struct Pipelines {
     pub forward: [ForwardPipelines; 2],
     pub receiver_scene: wgpu::RenderPipeline,
     pub receiver_artefact: [wgpu::RenderPipeline; 2],
+    /// The formats the shadow and receiver pipelines write.
+    pub formats: TargetFormats,
 }
 
 pub(crate) struct ForwardPipelines {
@@ -164,7 +191,7 @@ fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeli
 }
 
 impl Pipelines {
-    pub fn new(device: &wgpu::Device) -> Pipelines {
+    pub fn new(device: &wgpu::Device, formats: TargetFormats) -> Pipelines {
         use wgpu::TextureViewDimension as D;
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("parallax frame"),
@@ -242,7 +269,7 @@ impl Pipelines {
                 module: &shadow_module,
                 vs: "vs_shadow",
                 fs: "fs_shadow",
-                targets: &[Some(SHADOW_FORMAT.into())],
+                targets: &[Some(formats.shadow.into())],
                 cull: None,
                 depth_write: true,
                 samples: 1,
@@ -306,7 +333,7 @@ impl Pipelines {
         let receiver_targets = |ratio: bool| {
             [
                 Some(wgpu::ColorTargetState {
-                    format: RATIO_FORMAT,
+                    format: formats.ratio,
                     blend: None,
                     write_mask: if ratio {
                         wgpu::ColorWrites::ALL
@@ -315,7 +342,7 @@ impl Pipelines {
                     },
                 }),
                 Some(wgpu::ColorTargetState {
-                    format: ARTEFACT_DEPTH_FORMAT,
+                    format: formats.artefact_depth,
                     blend: None,
                     write_mask: if ratio {
                         wgpu::ColorWrites::empty()
@@ -363,6 +390,7 @@ impl Pipelines {
             forward,
             receiver_scene,
             receiver_artefact,
+            formats,
         }
     }
 }

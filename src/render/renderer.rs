@@ -13,10 +13,7 @@ use super::options::{
     Composite, RenderInputs, RenderOptions, RenderRecord, ShadingMode, ShadowMode,
     EVSM_EXPONENT_LIMIT,
 };
-use super::pipelines::{
-    DrawKind, Pipelines, ARTEFACT_DEPTH_FORMAT, DEPTH_FORMAT, LAYER_FORMAT, RATIO_FORMAT,
-    SHADOW_FORMAT,
-};
+use super::pipelines::{DrawKind, Pipelines, TargetFormats, DEPTH_FORMAT, LAYER_FORMAT};
 use super::resources::{empty_environment, mask_texture, upload_environment, Materials};
 use super::shadow_views::{plan, LightShadowPlan, ShadowView};
 use crate::camera::DepthEncoding;
@@ -98,6 +95,21 @@ fn target(
     })
 }
 
+/// The texels of a read-back float texture (`R32Float`/`Rgba32Float` or their 16-bit
+/// counterparts) as `f32`, channels interleaved.
+fn float_texels(bytes: &[u8], format: wgpu::TextureFormat) -> Vec<f32> {
+    match format {
+        wgpu::TextureFormat::R16Float | wgpu::TextureFormat::Rgba16Float => bytes
+            .chunks_exact(2)
+            .map(|b| half::f16::from_le_bytes([b[0], b[1]]).to_f32())
+            .collect(),
+        _ => bytes
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect(),
+    }
+}
+
 impl Renderer {
     /// A renderer on the library's own GPU context.
     ///
@@ -109,13 +121,31 @@ impl Renderer {
 
     /// A renderer on a host's device and queue (Rust callers that already run wgpu). The device
     /// needs no optional feature: every 32-bit float texture is read without filtering, and 4×
-    /// MSAA of `Rgba16Float` and `Depth32Float` is guaranteed by WebGPU.
+    /// MSAA of `Rgba16Float` and `Depth32Float` is guaranteed by WebGPU. Where the device cannot
+    /// render into 32-bit float textures (wgpu's OpenGL backend without
+    /// `EXT_color_buffer_float`), shadow maps, the shadow ratio and the artefacts' depth are
+    /// 16-bit floats instead (distances to 0.05 %).
+    ///
+    /// # Errors
+    /// `Gpu` when the device rejects a shader or pipeline with either set of formats (the message
+    /// has wgpu's reason for the 32-bit one).
+    pub fn from_device(device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Renderer> {
+        Renderer::with_formats(device, queue, TargetFormats::FLOAT32).or_else(|e| {
+            Renderer::with_formats(device, queue, TargetFormats::FLOAT16).map_err(|_| e)
+        })
+    }
+
+    /// A renderer whose shadow maps, shadow ratio and artefact depth have `formats`.
     ///
     /// # Errors
     /// `Gpu` when the device rejects a shader or pipeline (the message has wgpu's reason).
-    pub fn from_device(device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Renderer> {
+    pub(crate) fn with_formats(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        formats: TargetFormats,
+    ) -> Result<Renderer> {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let pipelines = Pipelines::new(device);
+        let pipelines = Pipelines::new(device, formats);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu(format!(
                 "creating the render pipelines failed: {e}"
@@ -406,6 +436,7 @@ impl Renderer {
             ],
         };
         let device = &self.device;
+        let formats = self.pipelines.formats;
         // Device errors (out of memory for large shadow maps, validation) become `Error::Gpu`
         // instead of wgpu's default panic; scopes pop in reverse order.
         let oom_scope = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
@@ -479,7 +510,7 @@ impl Renderer {
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
-            format: SHADOW_FORMAT,
+            format: formats.shadow,
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
@@ -741,7 +772,7 @@ impl Renderer {
             device,
             "parallax shadow ratio",
             (w, h),
-            RATIO_FORMAT,
+            formats.ratio,
             1,
             true,
         );
@@ -750,7 +781,7 @@ impl Renderer {
             device,
             "parallax artefact depth",
             (w, h),
-            ARTEFACT_DEPTH_FORMAT,
+            formats.artefact_depth,
             1,
             true,
         );
@@ -843,8 +874,8 @@ impl Renderer {
         // ---- composite ---------------------------------------------------------------------
         let t = Instant::now();
         let halves: &[half::f16] = bytemuck::cast_slice(&layer_bytes);
-        let ratios: &[f32] = bytemuck::cast_slice(&ratio_bytes);
-        let depths: &[f32] = bytemuck::cast_slice(&depth_bytes);
+        let ratios = float_texels(&ratio_bytes, formats.ratio);
+        let depths = float_texels(&depth_bytes, formats.artefact_depth);
         let (wu, hu) = (w as usize, h as usize);
         let finite = |v: f32, lo: f32, hi: f32| if v.is_finite() { v.clamp(lo, hi) } else { lo };
         let artefact_layer = Raster::from_fn(wu, hu, |x, y| {

@@ -116,7 +116,16 @@ impl Scene {
         options: &RenderOptions,
         env: Option<SpecularEnvironment<'_>>,
     ) -> crate::Result<Composite> {
-        let out = renderer().render(
+        self.render_on(renderer(), options, env)
+    }
+
+    fn render_on(
+        &self,
+        renderer: &Renderer,
+        options: &RenderOptions,
+        env: Option<SpecularEnvironment<'_>>,
+    ) -> crate::Result<Composite> {
+        let out = renderer.render(
             &RenderInputs {
                 photo: &self.photo,
                 camera: &self.camera,
@@ -189,6 +198,57 @@ fn box_on_floor() -> Scene {
     s.lights
         .push(Light::directional([1.0, -1.0, 0.0], 0.5, [3.0; 3]));
     s
+}
+
+/// Devices that cannot render into 32-bit floats (wgpu's OpenGL backend on llvmpipe) get 16-bit
+/// shadow maps, shadow ratio and artefact depth. Forced here on any device, they must give the
+/// same picture: the box, its shadow and its depth, in every shadow mode.
+#[test]
+fn sixteen_bit_targets_render_like_32_bit_ones() {
+    let gpu = GpuContext::new(&GpuOptions::default()).unwrap();
+    let half = Renderer::with_formats(
+        &gpu.device,
+        &gpu.queue,
+        super::pipelines::TargetFormats::FLOAT16,
+    )
+    .unwrap();
+    let s = box_on_floor();
+    for mode in [ShadowMode::ThesisEsm, ShadowMode::Evsm, ShadowMode::Pcss] {
+        let full = s.render(&small(mode));
+        let reduced = s.render_on(&half, &small(mode), None).unwrap();
+        // Depth comparisons may flip on a pixel or two of a silhouette or a shadow's edge.
+        let (mut differing, mut sum) = (0usize, 0.0f64);
+        for (a, b) in full
+            .composite
+            .pixels()
+            .iter()
+            .zip(reduced.composite.pixels())
+        {
+            let d = (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0f32, f32::max);
+            differing += (d > 0.01) as usize;
+            sum += d as f64;
+        }
+        let mean = sum / full.composite.pixels().len() as f64;
+        eprintln!("{mode:?}: {differing} pixels differ by more than 0.01, mean {mean}");
+        assert!(
+            differing <= 3 && mean < 0.001,
+            "{mode:?}: {differing} pixels differ by more than 0.01, {mean} on average"
+        );
+        for (a, b) in full.mask.pixels().iter().zip(reduced.mask.pixels()) {
+            assert!((a - b).abs() < 0.01, "{mode:?}: mask {a} vs {b}");
+        }
+        for (a, b) in full
+            .artefact_depth
+            .pixels()
+            .iter()
+            .zip(reduced.artefact_depth.pixels())
+        {
+            assert!(
+                (a - b).abs() <= 1e-3 * a.abs(),
+                "{mode:?}: artefact depth {a} vs {b}"
+            );
+        }
+    }
 }
 
 #[test]
