@@ -601,7 +601,8 @@ fn fibonacci(count: usize, up: Vec3, min_up: f32) -> Vec<Vec3> {
 }
 
 /// Fits the lights (see the module documentation). `in_view` are the sources found in the photo
-/// ([`crate::light::detect_sources`]); their positions are kept and their intensities re-fitted.
+/// ([`crate::light::detect_sources`]); their positions are kept and their intensities re-fitted,
+/// and those fitted to no light are left out of [`LightFit::lights`].
 ///
 /// # Errors
 /// `SizeMismatch` when a raster is not the photo's size or the camera's; `InvalidArgument` for an
@@ -1066,7 +1067,9 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let pi = std::f32::consts::PI;
     let mut lights = Vec::new();
     for (j, l) in in_view.iter().enumerate() {
-        if lum_fit.x[j] <= 0.0 {
+        // In f32, as handed on: a positive f64 that rounds to zero lights nothing either.
+        let fitted = lum_fit.x[j] as f32;
+        if fitted.is_nan() || fitted <= 0.0 {
             continue;
         }
         // E_j = I / π for a light at a position (diffuse radiance = ρ/π · I cosθ / r²).

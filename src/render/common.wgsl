@@ -164,7 +164,10 @@ fn texel_world(v: GpuView, dist: f32) -> f32 {
 fn load_depth(layer: i32, t: vec2<i32>) -> f32 {
     let size = i32(frame.flags.x);
     let c = clamp(t, vec2<i32>(0), vec2<i32>(size - 1));
-    return textureLoad(shadow_maps, c, layer, 0).r;
+    // Red and green add up to the distance (green is 0 unless the map is split over two
+    // 16-bit channels, see shadow.wgsl).
+    let texel = textureLoad(shadow_maps, c, layer, 0);
+    return texel.r + texel.g;
 }
 
 // Eq. 3.36–3.38: per tap, 1 where the receiver is not behind the occluder, else

@@ -29,8 +29,8 @@
 //! 4. **Composite** (CPU): `photo × ratio × (1 − α) + artefact` (premultiplied).
 //!
 //! Shadow maps, the shadow ratio and the artefact depth are 32-bit float targets, or 16-bit ones
-//! on a device that cannot render into 32-bit floats (wgpu's OpenGL backend without
-//! `EXT_color_buffer_float`; `pipelines::TargetFormats`).
+//! on a device that cannot render into 32-bit floats (wgpu's OpenGL backend on some drivers;
+//! `pipelines::TargetFormats`).
 
 // The renderer draws artefacts, so it needs the glTF types (feature `gltf`); the context does not.
 #[cfg(feature = "gltf")]

@@ -7,9 +7,9 @@ pub(crate) const LAYER_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16
 
 /// Formats of the float render targets that are read back or sampled as data.
 ///
-/// WebGPU can render into 32-bit floats everywhere, but wgpu's OpenGL backend cannot where the
-/// driver lacks `EXT_color_buffer_float` (Mesa's llvmpipe through EGL, for one: only 16-bit
-/// floats are renderable there). The renderer then falls back to [`TargetFormats::FLOAT16`].
+/// WebGPU can render into 32-bit floats everywhere, but wgpu's OpenGL backend cannot on every
+/// driver: on Mesa's llvmpipe it reports only 16-bit floats as renderable. The renderer then
+/// falls back to [`TargetFormats::FLOAT16`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct TargetFormats {
     /// Shadow maps: linear distance from the light, metres.
@@ -18,6 +18,10 @@ pub(crate) struct TargetFormats {
     pub ratio: wgpu::TextureFormat,
     /// Artefact depth along the view axis, metres.
     pub artefact_depth: wgpu::TextureFormat,
+    /// Whether a shadow-map texel holds its distance as two halves, the distance rounded to f16
+    /// in red and the remainder in green: 16-bit floats alone keep 11 bits, under the shadow
+    /// test's bias a few metres away; the pair keeps about 22.
+    pub split_shadow_distance: bool,
 }
 
 impl TargetFormats {
@@ -26,13 +30,15 @@ impl TargetFormats {
         shadow: wgpu::TextureFormat::R32Float,
         ratio: wgpu::TextureFormat::Rgba32Float,
         artefact_depth: wgpu::TextureFormat::R32Float,
+        split_shadow_distance: false,
     };
-    /// 16-bit floats, for devices that cannot render into 32-bit ones: distances keep 11
-    /// significant bits (0.05 %, 2.4 mm at 5 m).
+    /// 16-bit floats, for devices that cannot render into 32-bit ones: shadow distances split
+    /// over two channels, the artefact depth to 11 significant bits (0.05 %), at most 65504 m.
     pub const FLOAT16: TargetFormats = TargetFormats {
-        shadow: wgpu::TextureFormat::R16Float,
+        shadow: wgpu::TextureFormat::Rgba16Float,
         ratio: wgpu::TextureFormat::Rgba16Float,
         artefact_depth: wgpu::TextureFormat::R16Float,
+        split_shadow_distance: true,
     };
 }
 /// Every depth buffer (reversed Z: 1 near, 0 far; compare `Greater`).
@@ -155,6 +161,8 @@ struct PipelineSpec<'a> {
     cull: Option<wgpu::Face>,
     depth_write: bool,
     samples: u32,
+    /// Values of the fragment shader's pipeline-overridable constants.
+    constants: &'a [(&'a str, f64)],
 }
 
 fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
@@ -170,7 +178,10 @@ fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeli
         fragment: Some(wgpu::FragmentState {
             module: spec.module,
             entry_point: Some(spec.fs),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: spec.constants,
+                ..Default::default()
+            },
             targets: spec.targets,
         }),
         primitive: wgpu::PrimitiveState {
@@ -273,6 +284,7 @@ impl Pipelines {
                 cull: None,
                 depth_write: true,
                 samples: 1,
+                constants: &[("SPLIT_DISTANCE", formats.split_shadow_distance as u8 as f64)],
             },
         );
 
@@ -294,6 +306,7 @@ impl Pipelines {
                     cull: None,
                     depth_write: true,
                     samples,
+                    constants: &[],
                 },
             );
             let artefact = std::array::from_fn(|i| {
@@ -320,6 +333,7 @@ impl Pipelines {
                         },
                         depth_write: !blend,
                         samples,
+                        constants: &[],
                     },
                 )
             });
@@ -364,6 +378,7 @@ impl Pipelines {
                 cull: None,
                 depth_write: true,
                 samples: 1,
+                constants: &[],
             },
         );
         let receiver_artefact = std::array::from_fn(|i| {
@@ -379,6 +394,7 @@ impl Pipelines {
                     cull: if i == 1 { None } else { Some(wgpu::Face::Back) },
                     depth_write: true,
                     samples: 1,
+                    constants: &[],
                 },
             )
         });

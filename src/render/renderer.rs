@@ -122,16 +122,26 @@ impl Renderer {
     /// A renderer on a host's device and queue (Rust callers that already run wgpu). The device
     /// needs no optional feature: every 32-bit float texture is read without filtering, and 4×
     /// MSAA of `Rgba16Float` and `Depth32Float` is guaranteed by WebGPU. Where the device cannot
-    /// render into 32-bit float textures (wgpu's OpenGL backend without
-    /// `EXT_color_buffer_float`), shadow maps, the shadow ratio and the artefacts' depth are
-    /// 16-bit floats instead (distances to 0.05 %).
+    /// render into 32-bit float textures (wgpu's OpenGL backend on some drivers, Mesa's llvmpipe
+    /// among them), shadow maps, the shadow ratio and the artefacts' depth are 16-bit floats
+    /// instead (see `TargetFormats::FLOAT16`), and the `render.gpu` record says so.
     ///
     /// # Errors
-    /// `Gpu` when the device rejects a shader or pipeline with either set of formats (the message
-    /// has wgpu's reason for the 32-bit one).
+    /// `Gpu` when the device rejects a shader or pipeline with both sets of formats (the message
+    /// has wgpu's reason for each).
     pub fn from_device(device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Renderer> {
-        Renderer::with_formats(device, queue, TargetFormats::FLOAT32).or_else(|e| {
-            Renderer::with_formats(device, queue, TargetFormats::FLOAT16).map_err(|_| e)
+        let reason = |e: Error| match e {
+            Error::Gpu(message) => message,
+            other => other.to_string(),
+        };
+        Renderer::with_formats(device, queue, TargetFormats::FLOAT32).or_else(|full| {
+            Renderer::with_formats(device, queue, TargetFormats::FLOAT16).map_err(|reduced| {
+                Error::Gpu(format!(
+                    "{}; with 16-bit float targets instead: {}",
+                    reason(full),
+                    reason(reduced)
+                ))
+            })
         })
     }
 
@@ -858,7 +868,7 @@ impl Renderer {
             "render.gpu",
             t,
             format!(
-                "shadow maps, artefacts ({samples}× MSAA, {} shading), shadow ratio{}; read back",
+                "shadow maps, artefacts ({samples}× MSAA, {} shading), shadow ratio{}; read back{}",
                 match options.shading {
                     ShadingMode::Pbr => "PBR",
                     ShadingMode::Thesis => "thesis",
@@ -867,24 +877,29 @@ impl Renderer {
                     ""
                 } else {
                     " (no scene mesh: ratio 1)"
+                },
+                if formats == TargetFormats::FLOAT32 {
+                    ""
+                } else {
+                    "; 16-bit float targets (the device cannot render into 32-bit floats)"
                 }
             ),
         );
 
         // ---- composite ---------------------------------------------------------------------
         let t = Instant::now();
-        let halves: &[half::f16] = bytemuck::cast_slice(&layer_bytes);
+        let layer_texels = float_texels(&layer_bytes, LAYER_FORMAT);
         let ratios = float_texels(&ratio_bytes, formats.ratio);
         let depths = float_texels(&depth_bytes, formats.artefact_depth);
         let (wu, hu) = (w as usize, h as usize);
         let finite = |v: f32, lo: f32, hi: f32| if v.is_finite() { v.clamp(lo, hi) } else { lo };
         let artefact_layer = Raster::from_fn(wu, hu, |x, y| {
             let i = (y * wu + x) * 4;
-            let a = finite(halves[i + 3].to_f32(), 0.0, 1.0);
+            let a = finite(layer_texels[i + 3], 0.0, 1.0);
             [
-                finite(halves[i].to_f32(), 0.0, 65504.0),
-                finite(halves[i + 1].to_f32(), 0.0, 65504.0),
-                finite(halves[i + 2].to_f32(), 0.0, 65504.0),
+                finite(layer_texels[i], 0.0, 65504.0),
+                finite(layer_texels[i + 1], 0.0, 65504.0),
+                finite(layer_texels[i + 2], 0.0, 65504.0),
                 a,
             ]
         });
@@ -899,8 +914,11 @@ impl Renderer {
                 }
             })
         });
-        let artefact_depth =
-            Raster::from_fn(wu, hu, |x, y| finite(depths[y * wu + x], 0.0, f32::MAX));
+        // An artefact beyond a 16-bit target's range (65504 m) reads back as +∞: far, not absent.
+        let artefact_depth = Raster::from_fn(wu, hu, |x, y| match depths[y * wu + x] {
+            f32::INFINITY => f32::MAX,
+            d => finite(d, 0.0, f32::MAX),
+        });
         let mask = artefact_layer.map(|p| p[3]);
         let composite = Raster::from_fn(wu, hu, |x, y| {
             let p = inputs.photo.get(x, y);

@@ -1,5 +1,9 @@
 // Shadow-map pass: linear distance from the light (metres) of the nearest caster per texel.
 
+// Set for 16-bit targets (`TargetFormats::split_shadow_distance`): the distance is written as
+// its f16 rounding plus the remainder, which the lookup adds back.
+override SPLIT_DISTANCE: bool = false;
+
 struct ShadowPass {
     view_proj: mat4x4<f32>,
     // light position or near-plane point, 1 when orthographic
@@ -52,6 +56,10 @@ fn fs_shadow(v: VertexOut) -> @location(0) vec4<f32> {
         d = dot(v.world - pass_.origin_ortho.xyz, pass_.axis.xyz);
     } else {
         d = length(v.world - pass_.origin_ortho.xyz);
+    }
+    if (SPLIT_DISTANCE && d < 65504.0) {
+        let high = quantizeToF16(d);
+        return vec4<f32>(high, d - high, 0.0, 1.0);
     }
     return vec4<f32>(d, 0.0, 0.0, 1.0);
 }
