@@ -1018,7 +1018,17 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     // In-view sources that the fit gives no light explain nothing (a sunlit patch taken for a
     // lamp) and are not handed on as lights. With no fitted light either, nothing was inferred,
     // which is what the fallback is for.
-    if !keep_fitted && lum_fit.x[..in_view.len()].iter().all(|x| *x <= 0.0) {
+    // Judged in f32, as the intensities are handed on: a positive f64 that rounds to zero
+    // lights nothing either.
+    let lights_nothing = |x: f64| {
+        let x = x as f32;
+        x.is_nan() || x <= 0.0
+    };
+    if !keep_fitted
+        && lum_fit.x[..in_view.len()]
+            .iter()
+            .all(|x| lights_nothing(*x))
+    {
         return Ok(fallback(samples.len(), &[]));
     }
     let (_, rho) = projected(&g, &luma, &regions, n_regions, &lum_fit.x);
@@ -1067,9 +1077,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let pi = std::f32::consts::PI;
     let mut lights = Vec::new();
     for (j, l) in in_view.iter().enumerate() {
-        // In f32, as handed on: a positive f64 that rounds to zero lights nothing either.
-        let fitted = lum_fit.x[j] as f32;
-        if fitted.is_nan() || fitted <= 0.0 {
+        if lights_nothing(lum_fit.x[j]) {
             continue;
         }
         // E_j = I / π for a light at a position (diffuse radiance = ρ/π · I cosθ / r²).

@@ -906,10 +906,10 @@ fn sunlight_through_a_skylight_bounces_onto_the_ceiling_by_its_form_factor() {
         transform: Transform::at(centre[0], centre[1], centre[2]),
     };
     let y = height + 0.5 * thickness;
-    // (half the skylight's side, the camera's horizontal field of view): the wide skylight needs
-    // a wide view to see ceiling around it.
+    // (half the skylight's side, the sun's angular diameter).
     let cases = [(0.15f32, 0.0f32), (0.15, 0.53), (0.6, 0.0), (0.6, 0.53)];
     for (half, sun_diameter) in cases {
+        // The wide skylight needs a wide view to see ceiling around it.
         let fov = if half < 0.5 { 50.0 } else { 110.0 };
         let (side, rest) = (0.5 * room, 0.5 * room - half);
         let scene = Scene {

@@ -18,10 +18,6 @@ pub(crate) struct TargetFormats {
     pub ratio: wgpu::TextureFormat,
     /// Artefact depth along the view axis, metres.
     pub artefact_depth: wgpu::TextureFormat,
-    /// Whether a shadow-map texel holds its distance as two halves, the distance rounded to f16
-    /// in red and the remainder in green: 16-bit floats alone keep 11 bits, under the shadow
-    /// test's bias a few metres away; the pair keeps about 22.
-    pub split_shadow_distance: bool,
 }
 
 impl TargetFormats {
@@ -30,7 +26,6 @@ impl TargetFormats {
         shadow: wgpu::TextureFormat::R32Float,
         ratio: wgpu::TextureFormat::Rgba32Float,
         artefact_depth: wgpu::TextureFormat::R32Float,
-        split_shadow_distance: false,
     };
     /// 16-bit floats, for devices that cannot render into 32-bit ones: shadow distances split
     /// over two channels, the artefact depth to 11 significant bits (0.05 %), at most 65504 m.
@@ -38,8 +33,14 @@ impl TargetFormats {
         shadow: wgpu::TextureFormat::Rgba16Float,
         ratio: wgpu::TextureFormat::Rgba16Float,
         artefact_depth: wgpu::TextureFormat::R16Float,
-        split_shadow_distance: true,
     };
+
+    /// Whether a shadow-map texel holds its distance as two halves, the distance rounded to f16
+    /// in red and the remainder in green: 16-bit floats alone keep 11 bits, under the shadow
+    /// test's bias a few metres away; the pair keeps about 22.
+    pub fn split_shadow_distance(&self) -> bool {
+        self.shadow == wgpu::TextureFormat::Rgba16Float
+    }
 }
 /// Every depth buffer (reversed Z: 1 near, 0 far; compare `Greater`).
 pub(crate) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -284,7 +285,10 @@ impl Pipelines {
                 cull: None,
                 depth_write: true,
                 samples: 1,
-                constants: &[("SPLIT_DISTANCE", formats.split_shadow_distance as u8 as f64)],
+                constants: &[(
+                    "SPLIT_DISTANCE",
+                    formats.split_shadow_distance() as u8 as f64,
+                )],
             },
         );
 

@@ -184,20 +184,25 @@ fn small(shadows: ShadowMode) -> RenderOptions {
     }
 }
 
-/// A 0.5 m box standing on the floor at (0, −1, −4), lit at 45° from the left: its shadow falls
-/// to +x.
-fn box_on_floor() -> Scene {
-    let mut s = Scene::new(Some(floor()));
+/// A red box of side `side` standing on `floor` (at y = −1) centred at (0, ·, −4), lit by a
+/// directional light travelling along `light`.
+fn box_standing_on(floor: SceneMesh, side: f32, light: [f32; 3]) -> Scene {
+    let mut s = Scene::new(Some(floor));
     s.set
         .add(
             cube(diffuse([0.8, 0.2, 0.2])),
-            Mat4::from_translation(Vec3::new(0.0, -0.75, -4.0))
-                * Mat4::from_scale(Vec3::splat(0.5)),
+            Mat4::from_translation(Vec3::new(0.0, -1.0 + 0.5 * side, -4.0))
+                * Mat4::from_scale(Vec3::splat(side)),
         )
         .unwrap();
-    s.lights
-        .push(Light::directional([1.0, -1.0, 0.0], 0.5, [3.0; 3]));
+    s.lights.push(Light::directional(light, 0.5, [3.0; 3]));
     s
+}
+
+/// A 0.5 m box standing on the floor at (0, −1, −4), lit at 45° from the left: its shadow falls
+/// to +x.
+fn box_on_floor() -> Scene {
+    box_standing_on(floor(), 0.5, [1.0, -1.0, 0.0])
 }
 
 /// Devices that cannot render into 32-bit floats (wgpu's OpenGL backend on llvmpipe) get 16-bit
@@ -216,22 +221,13 @@ fn sixteen_bit_targets_render_like_32_bit_ones() {
     // distances alone (2 mm steps a few metres away) fall under the shadow test's bias, and lit
     // faces went black (found in review).
     let wide = || {
-        let mut s = Scene::new(Some(quad_mesh(
+        let floor = quad_mesh(
             Vec3::new(-15.0, -1.0, -1.0),
             Vec3::new(30.0, 0.0, 0.0),
             Vec3::new(0.0, 0.0, -30.0),
             30,
-        )));
-        s.set
-            .add(
-                cube(diffuse([0.8, 0.2, 0.2])),
-                Mat4::from_translation(Vec3::new(0.0, -0.85, -4.0))
-                    * Mat4::from_scale(Vec3::splat(0.3)),
-            )
-            .unwrap();
-        s.lights
-            .push(Light::directional([1.0, -1.0, 0.3], 0.5, [3.0; 3]));
-        s
+        );
+        box_standing_on(floor, 0.3, [1.0, -1.0, 0.3])
     };
     let mut cases = Vec::new();
     for mode in [ShadowMode::ThesisEsm, ShadowMode::Evsm, ShadowMode::Pcss] {
