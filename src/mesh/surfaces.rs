@@ -669,9 +669,9 @@ impl Search<'_> {
 
     /// RANSAC for level planes (normal `up`, through a point of the pool): each round takes the
     /// level plane with the most inliers, moves it to their median height, and keeps its largest
-    /// connected piece when a free fit of that piece levels to `up` ([`levelled`]) — a band
-    /// across a ramp, a dome or the rim of a bowl does not. Appended to `found`; their points
-    /// leave `remaining`.
+    /// connected piece when [`Search::as_level`] takes it for a level surface (a band across a
+    /// ramp, a dome or the rim of a bowl is not). Appended to `found`; their points leave
+    /// `remaining`.
     fn level_planes(
         &self,
         up: Vec3,
@@ -696,12 +696,8 @@ impl Search<'_> {
             let mut inliers = Vec::new();
             for _ in 0..3 {
                 inliers = self.inliers(&pool, &plane);
-                let heights = measured_or_all(points, &inliers)
-                    .iter()
-                    .map(|&i| plane.normal.dot(points[i].p) as f64)
-                    .collect();
-                match median(heights) {
-                    Some(offset) => plane = Plane::facing_camera(plane.normal, offset as f32),
+                match level_plane(&plane, &inliers, points, up) {
+                    Some(p) => plane = p,
                     None => break,
                 }
             }
@@ -709,7 +705,8 @@ impl Search<'_> {
             let fitted = (piece.len() >= self.min_inliers)
                 .then(|| fit_plane_robust(points, &measured_or_all(points, &piece), self.camera))
                 .flatten();
-            let Some((fitted, level)) = fitted.and_then(|f| self.as_level(&pool, f, &piece, up))
+            let Some((fitted, level)) =
+                fitted.and_then(|f| Some((f, self.as_level(&pool, &f, &piece, up)?)))
             else {
                 misses += 1;
                 drop_from(&mut pool, &inliers, points.len());
@@ -736,25 +733,19 @@ impl Search<'_> {
     /// tilted by its fronto-parallel bias (3° on a 256-spp render of `clutter`,
     /// docs/reconstruction-eval.md, stop 32), and because that error is systematic, the levelled
     /// plane fits it clearly worse than its own fit, as it would a real slope.
-    fn as_level(
-        &self,
-        pool: &[usize],
-        fitted: Plane,
-        piece: &[usize],
-        up: Vec3,
-    ) -> Option<(Plane, Plane)> {
+    fn as_level(&self, pool: &[usize], fitted: &Plane, piece: &[usize], up: Vec3) -> Option<Plane> {
         let points = self.points;
-        let level = match levelled(&fitted, piece, points, up) {
+        let level = match levelled(fitted, piece, points, up) {
             Some(level) => level,
             None if fitted.normal.dot(up).abs() >= LEVEL_BIAS_TILT_DEG.to_radians().cos() => {
-                level_plane(&fitted, piece, points, up)?
+                level_plane(fitted, piece, points, up)?
             }
             None => return None,
         };
         let along = self
             .grid
-            .largest_component(points, &self.inliers(pool, &fitted));
-        (along.len() as f32 <= LEVEL_BAND_RATIO * piece.len() as f32).then_some((fitted, level))
+            .largest_component(points, &self.inliers(pool, fitted));
+        (along.len() as f32 <= LEVEL_BAND_RATIO * piece.len() as f32).then_some(level)
     }
 
     /// The points of `pool` that are inliers of `plane`.
