@@ -1085,15 +1085,18 @@ fn csharp_example_renders_the_box_into_the_synthetic_scene_and_raises_typed_erro
         "{changed} of {} covered pixels differ from the photo",
         covered.len()
     );
-    // Far from the box (the upper third of the image: walls and ceiling) the photo is unchanged.
+    // Far from the box (the upper third of the image: walls and ceiling) the photo is unchanged,
+    // but for the light the box takes from the wall and table behind it: a few grey levels over a
+    // few percent of the pixels (up to 3.7 levels over 3.6 % measured), never as much as the box.
     let far: Vec<usize> = (0..w * h / 3).collect();
     let unchanged = far
         .iter()
         .filter(|&&i| diff(i) <= 2.0 && mask[i] == 0.0)
         .count();
+    let largest = far.iter().map(|&i| diff(i)).fold(0.0, f64::max);
     assert!(
-        unchanged * 100 >= far.len() * 99,
-        "{unchanged} of {} far pixels unchanged",
+        unchanged * 100 >= far.len() * 95 && largest <= 8.0,
+        "{unchanged} of {} far pixels unchanged, the largest change {largest}",
         far.len()
     );
 
@@ -1326,14 +1329,14 @@ fn unity_compositor_fills_the_output_texture_the_right_way_up() {
         "only {near} of {} pixels around the box differ from the photo",
         window.len()
     );
-    // ... and not at the mirrored position, nor anywhere in the upper third.
-    let unchanged = (0..h / 3)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .filter(|&(x, y)| diff(x, y) <= 2.0)
-        .count();
+    // ... and not at the mirrored position, nor anywhere in the upper third (but for the few
+    // grey levels of light the box takes from the wall behind it, as in the example's test).
+    let upper = || (0..h / 3).flat_map(|y| (0..w).map(move |x| (x, y)));
+    let unchanged = upper().filter(|&(x, y)| diff(x, y) <= 2.0).count();
+    let largest = upper().map(|(x, y)| diff(x, y)).fold(0.0, f64::max);
     assert!(
-        unchanged * 100 >= (h / 3) * w * 99,
-        "{unchanged} of {} upper pixels unchanged: rows flipped?",
+        unchanged * 100 >= (h / 3) * w * 95 && largest <= 8.0,
+        "{unchanged} of {} upper pixels unchanged, the largest change {largest}: rows flipped?",
         (h / 3) * w
     );
 }

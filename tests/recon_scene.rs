@@ -647,6 +647,7 @@ fn without_planes_a_slanted_vertex_normal_stands_the_object_along_gravity() {
         surfaces: Vec::new(),
         up: room.up(),
         up_source: UpSource::Planes,
+        inverse_depth_noise: 0.0,
     };
     let spot = room.to_camera * Vec3::new(0.2, TABLE_Y, -2.5);
     let pixel = room.camera.project(spot).unwrap().0;
@@ -955,6 +956,111 @@ fn mesh_normals_on_detected_surfaces_take_the_planes_and_object_sides_keep_their
         .filter(|(a, b)| Vec3::from(**a).angle_between(Vec3::from(**b)) < 1e-4)
         .count();
     assert!(same * 10 > turned.vertex_count() * 9, "{same} kept");
+}
+
+#[test]
+fn under_heavy_noise_mesh_normals_snap_within_the_depths_own_noise() {
+    // 1.5 px of disparity noise: 6–25 % of depth over the room, so most floor vertices lie more
+    // than the 2 % membership tolerance off the floor plane, and inside its noise band.
+    let room = room(320, 240, 280.0);
+    let noisy = with_disparity_noise(&room.depth, 280.0 * 0.12, 1.5, 0x5eed);
+    let mesh = SceneMesh::from_depth(&noisy, &room.camera, &MeshOptions::default()).unwrap();
+    let found = surfaces_of(&room, &mesh);
+    assert!(found.inverse_depth_noise > 0.0, "{found:#?}");
+    let options = SurfaceOptions::default();
+    let snapped_by = |surfaces: &Surfaces| {
+        let mut snapped = mesh.clone();
+        surfaces.snap_mesh_normals(
+            &mut snapped,
+            &room.camera,
+            options.membership_tolerance(),
+            options.membership_normal_tolerance_deg(),
+        );
+        snapped
+    };
+    let error_of = |snapped: &SceneMesh, label: Label| {
+        let mut errors: Vec<f32> = (0..mesh.vertex_count())
+            .filter(|&k| {
+                let (x, y) = pixel_of(&room, mesh.uvs[k]);
+                *room.labels.get(x, y) == label && interior(&room, x, y, 4)
+            })
+            .map(|k| {
+                let n = Vec3::from(snapped.normals[k]);
+                n.angle_between(room.up()).to_degrees()
+            })
+            .collect();
+        assert!(errors.len() > 500, "{label:?}: {} vertices", errors.len());
+        errors.sort_by(f32::total_cmp);
+        // Median, and the share within 1° (snapped).
+        let within = errors.iter().filter(|&&e| e < 1.0).count() as f32 / errors.len() as f32;
+        (errors[errors.len() / 2], within)
+    };
+    let with_noise = snapped_by(&found);
+    let without_noise = snapped_by(&Surfaces {
+        inverse_depth_noise: 0.0,
+        ..found.clone()
+    });
+    let (median, within) = error_of(&with_noise, Label::Floor);
+    let (median_2pc, within_2pc) = error_of(&without_noise, Label::Floor);
+    eprintln!("floor: {median}° ({within}) against {median_2pc}° ({within_2pc}) at 2 %");
+    assert!(
+        median < 1.0 && within > 0.75 && within > within_2pc + 0.2,
+        "floor normals: median {median}°, {within} snapped; at 2 % alone: {median_2pc}°, \
+         {within_2pc}"
+    );
+    // The table's sides stand on the floor inside its noise band, but face sideways: the angle
+    // test still keeps their own normals.
+    let (side_median, side_flattened) = error_of(&with_noise, Label::TableSide);
+    assert!(
+        side_median > 60.0 && side_flattened < 0.05,
+        "table sides: median tilt {side_median}°, {side_flattened} flattened"
+    );
+}
+
+#[test]
+fn a_point_on_two_overlapping_surfaces_belongs_to_the_nearer_plane() {
+    let camera = Camera::from_focal(100.0, 100, 100).unwrap();
+    let whole_image = vec![
+        Vec2::new(-1.0, -1.0),
+        Vec2::new(101.0, -1.0),
+        Vec2::new(101.0, 101.0),
+        Vec2::new(-1.0, 101.0),
+    ];
+    let plane = |normal: Vec3, offset: f32| SupportSurface {
+        normal,
+        centroid: normal * offset,
+        offset,
+        inliers: 1000,
+        rms_m: 0.01,
+        area_m2: 1.0,
+        polygon: Vec::new(),
+        polygon_image: whole_image.clone(),
+        kind: SurfaceKind::Slanted,
+    };
+    // A floor 1.3 m below the camera, and a plane tilted 20° from it that crosses it 3 m ahead.
+    let floor = plane(Vec3::Y, -1.3);
+    let tilted_normal = Vec3::new(0.0, 20f32.to_radians().cos(), 20f32.to_radians().sin());
+    let on_both = Vec3::new(0.0, -1.3, -3.0);
+    let tilted = plane(tilted_normal, tilted_normal.dot(on_both));
+    // A floor point 5 cm before the crossing: 1.8 cm off the tilted plane, on the floor.
+    let point = Vec3::new(0.0, -1.3, -2.95);
+    let pixel = camera.project(point).unwrap().0;
+    for (surfaces, floor_index) in [
+        (vec![floor.clone(), tilted.clone()], 0),
+        (vec![tilted, floor], 1),
+    ] {
+        let found = Surfaces {
+            surfaces,
+            up: Vec3::Y,
+            up_source: UpSource::Planes,
+            inverse_depth_noise: 0.01,
+        };
+        assert_eq!(found.surface_at(pixel, point, 0.02), Some(floor_index));
+        // Beyond the allowance of both: no surface (the depth's noise does not widen it here).
+        let above = point + Vec3::Y * 0.2;
+        let above_pixel = camera.project(above).unwrap().0;
+        assert_eq!(found.surface_at(above_pixel, above, 0.02), None);
+    }
 }
 
 /// The surfaces found on the exact depth of the floor, the back wall and axis-aligned boxes

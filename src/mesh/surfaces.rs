@@ -33,7 +33,10 @@
 //! `3·σ_w·Z·|D|` for a plane at distance `D` from the camera — or within the relative
 //! [`SurfaceOptions::distance_tolerance`], whichever is larger; and planes are refined by linear
 //! least squares of `w` over the pixel coordinates, which weights every point by its true
-//! precision (a principal-axis fit in 3D lets the noisiest, farthest points dominate).
+//! precision (a principal-axis fit in 3D lets the noisiest, farthest points dominate). A plane's
+//! members may lie twice as far off it as its inliers (`6·σ_w`); [`Surfaces`] keeps `σ_w`, so
+//! that [`Surfaces::snap_mesh_normals`] gives a vertex the plane's normal by the same allowance
+//! (its own normal must agree too, so that what stands on a surface keeps its normals).
 //!
 //! ## Measured and filled depth
 //! Given the depth's confidence ([`detect_surfaces_with_confidence`]; the scene passes the stereo
@@ -220,10 +223,24 @@ impl SupportSurface {
         point_in_polygon(pixel, &self.polygon_image)
     }
 
-    /// Whether the point seen at `pixel` lies on the surface: within `tolerance` × its depth of
-    /// the plane, the pixel inside the image polygon.
-    fn holds(&self, pixel: Vec2, point: Vec3, tolerance: f32) -> bool {
-        self.distance(point).abs() <= tolerance * -point.z && self.contains_pixel(pixel)
+    /// How far the point seen at `pixel` lies off the surface, as a fraction of the distance it
+    /// may lie off and still be on it: within `tolerance` × its depth of the plane, or within
+    /// `inverse_depth` (1/m) of the plane's inverse depth along its ray, whichever is larger
+    /// (module docs, "Noise model"). `None` when the pixel is outside the image polygon or the
+    /// point beyond that distance.
+    fn offness(&self, pixel: Vec2, point: Vec3, tolerance: f32, inverse_depth: f32) -> Option<f32> {
+        // |Δw| = |distance| / (Z·|D|) along the point's ray.
+        let allowed = -point.z * tolerance.max(inverse_depth * self.offset.abs());
+        let distance = self.distance(point).abs();
+        // Compared before dividing: a zero allowance holds a point exactly on the plane, and a
+        // point behind the camera (negative allowance) nothing.
+        (distance <= allowed && self.contains_pixel(pixel)).then(|| {
+            if allowed > 0.0 {
+                distance / allowed
+            } else {
+                0.0
+            }
+        })
     }
 
     /// Whether the foot of `p` on the plane lies inside the extent polygon.
@@ -245,6 +262,12 @@ pub struct Surfaces {
     pub up: Vec3,
     /// Whether `up` came from planes, from the host, or is the camera fallback.
     pub up_source: UpSource,
+    /// Noise of the depth the surfaces were found on: the standard deviation `σ_w` of its inverse
+    /// depth, 1/m, as detection measured it (module docs, "Noise model"); 0 when unknown. A
+    /// vertex within [`MEMBERSHIP_SIGMAS`] `σ_w` of a plane's inverse depth may take its normal
+    /// ([`Surfaces::snap_mesh_normals`]), as it counts as the plane's member.
+    #[serde(default)]
+    pub inverse_depth_noise: f32,
 }
 
 impl SurfaceKind {
@@ -293,13 +316,36 @@ impl Surfaces {
         Ok(self)
     }
 
-    /// The first (largest) surface that holds the point seen at `pixel` (continuous pixels): the
-    /// point lies within `tolerance` × its depth of the plane and the pixel inside the surface's
-    /// image polygon.
+    /// The surface that holds the point seen at `pixel` (continuous pixels): the pixel lies inside
+    /// the surface's image polygon and the point within `tolerance` × its depth of the plane.
+    /// Where several hold it, the one whose plane passes nearest (where two planes cross, a
+    /// point near the crossing lies within the tolerance of both).
+    ///
+    /// The point's normal is not asked, so the allowance does not widen with the depth's noise
+    /// as [`Surfaces::snap_mesh_normals`]' does: it would hold the foot of everything standing
+    /// on a floor on the floor.
     pub fn surface_at(&self, pixel: Vec2, point: Vec3, tolerance: f32) -> Option<usize> {
+        self.nearest_holding(pixel, point, tolerance, 0.0, |_| true)
+    }
+
+    /// The index of the surface nearest the point, relative to the distance it may lie off
+    /// ([`SupportSurface::offness`]), among those that hold it and that `accept`.
+    fn nearest_holding(
+        &self,
+        pixel: Vec2,
+        point: Vec3,
+        tolerance: f32,
+        inverse_depth: f32,
+        accept: impl Fn(&SupportSurface) -> bool,
+    ) -> Option<usize> {
         self.surfaces
             .iter()
-            .position(|s| s.holds(pixel, point, tolerance))
+            .enumerate()
+            .filter(|(_, s)| accept(s))
+            .filter_map(|(i, s)| Some((i, s.offness(pixel, point, tolerance, inverse_depth)?)))
+            // Ties go to the first (larger) surface.
+            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            .map(|(i, _)| i)
     }
 
     /// Replaces the normal of every pixel whose point lies on a detected surface
@@ -340,16 +386,21 @@ impl Surfaces {
 
     /// Gives every vertex of `mesh` (a grid mesh of `camera`'s image: its UVs locate each
     /// vertex's pixel) that lies on a detected surface the surface's normal, and returns how many
-    /// it changed. A vertex lies on a surface when its point is within `distance_tolerance` × its
-    /// depth of the plane, its pixel inside the surface's image polygon, and its own normal within
-    /// `max_angle_deg` of the plane's; the first (largest) such surface wins. Tangents are
+    /// it changed. A vertex lies on a surface when its pixel is inside the surface's image
+    /// polygon, its own normal within `max_angle_deg` of the plane's, and its point within
+    /// `distance_tolerance` × its depth of the plane or within [`MEMBERSHIP_SIGMAS`] `σ_w` of
+    /// the plane's inverse depth ([`Surfaces::inverse_depth_noise`]), whichever is larger; where
+    /// several surfaces qualify, the nearest (relative to that allowance) wins. Tangents are
     /// recomputed around the new normals.
     ///
     /// Why: a plane fitted to thousands of points knows its orientation far better than a local
     /// fit to one vertex's neighbourhood of noisy stereo depth, and a support surface whose
     /// normals scatter by a few degrees shades unevenly under a light. The angle test keeps the
     /// vertices of objects that touch a plane (a box side on the floor, a rounded edge) their own
-    /// normals.
+    /// normals. The distance has to allow for the noise: on a 16-spp `room` render a floor
+    /// vertex lies typically more than 2 % of its depth off the floor plane, and the floor's
+    /// median normal error was 11.6° with that alone (1.2° with the noise; docs/
+    /// reconstruction-eval.md, stop 34).
     pub fn snap_mesh_normals(
         &self,
         mesh: &mut SceneMesh,
@@ -361,6 +412,7 @@ impl Surfaces {
             return 0;
         }
         let min_cos = max_angle_deg.to_radians().cos();
+        let inverse_depth = MEMBERSHIP_SIGMAS * self.inverse_depth_noise;
         let size = Vec2::new(camera.width as f32, camera.height as f32);
         let mut replaced = 0;
         for ((position, normal), uv) in mesh
@@ -372,11 +424,11 @@ impl Surfaces {
             let point = Vec3::from(*position);
             let pixel = Vec2::from(*uv) * size;
             let own = Vec3::from(*normal);
-            let on = self.surfaces.iter().find(|s| {
-                own.dot(s.normal) >= min_cos && s.holds(pixel, point, distance_tolerance)
+            let on = self.nearest_holding(pixel, point, distance_tolerance, inverse_depth, |s| {
+                own.dot(s.normal) >= min_cos
             });
-            if let Some(s) = on {
-                *normal = s.normal.to_array();
+            if let Some(i) = on {
+                *normal = self.surfaces[i].normal.to_array();
                 replaced += 1;
             }
         }
@@ -498,15 +550,15 @@ fn detect(
             }
         }
     }
+    let sigma_w = inverse_depth_noise_of(mesh, camera).map_or(0.0, |sigma| sigma as f32);
     let tolerance = Tolerance {
         relative: options.distance_tolerance,
-        inverse_depth: inverse_depth_noise_of(mesh, camera)
-            .map_or(0.0, |sigma| (INLIER_SIGMAS * sigma) as f32),
+        inverse_depth: INLIER_SIGMAS * sigma_w,
         cos_normal: options.normal_tolerance_deg.to_radians().cos(),
     };
     let membership = Tolerance {
         relative: options.membership_tolerance(),
-        inverse_depth: MEMBERSHIP_FACTOR * tolerance.inverse_depth,
+        inverse_depth: MEMBERSHIP_SIGMAS * sigma_w,
         cos_normal: options.membership_normal_tolerance_deg().to_radians().cos(),
     };
     let search = Search {
@@ -557,6 +609,7 @@ fn detect(
         surfaces,
         up,
         up_source,
+        inverse_depth_noise: sigma_w,
     })
 }
 
@@ -872,11 +925,15 @@ const SURFACE_NOISE_SPACING: usize = 8;
 const MAX_MISSES: usize = 24;
 
 /// How many standard deviations of inverse-depth noise a point may lie off its plane.
-const INLIER_SIGMAS: f64 = 3.0;
+const INLIER_SIGMAS: f32 = 3.0;
 
 /// A surface's members may lie this many times farther off its plane than its inliers (as
 /// [`SurfaceOptions::membership_tolerance`] is to `distance_tolerance`).
 const MEMBERSHIP_FACTOR: f32 = 2.0;
+
+/// How many standard deviations of inverse-depth noise a surface's members may lie off its
+/// plane ([`Surfaces::inverse_depth_noise`]).
+pub const MEMBERSHIP_SIGMAS: f32 = MEMBERSHIP_FACTOR * INLIER_SIGMAS;
 
 /// The widest gap (cells of [`ImageGrid`], each about 1 % of the larger image side) between two
 /// pieces of one surface: an object standing on the surface hides a stretch of it about as wide
