@@ -1088,11 +1088,7 @@ impl ScoreSample {
         }
         sample
     }
-}
 
-crate::avx2_variant!(fn count_accepted<'a>(sample: &'a ScoreSample, plane: &'a Plane, tolerance: &'a Tolerance) -> usize => ScoreSample::count_accepted_body);
-
-impl ScoreSample {
     /// How many of the points `plane` accepts: [`Plane::accepts`], with the same arithmetic in
     /// the same order, so the count is the same to the point.
     #[inline(always)]
@@ -1116,6 +1112,8 @@ impl ScoreSample {
         count as usize
     }
 }
+
+crate::avx2_variant!(fn count_accepted<'a>(sample: &'a ScoreSample, plane: &'a Plane, tolerance: &'a Tolerance) -> usize => ScoreSample::count_accepted_body);
 
 /// Least-squares plane in inverse depth (module docs): `w = α·u + β·v + γ` over the points'
 /// pixels, solved about their mean pixel for conditioning. `None` for < 3 points or pixels on a
