@@ -1042,7 +1042,7 @@ fn a_point_on_two_overlapping_surfaces_belongs_to_the_nearer_plane() {
     let tilted_normal = Vec3::new(0.0, 20f32.to_radians().cos(), 20f32.to_radians().sin());
     let on_both = Vec3::new(0.0, -1.3, -3.0);
     let tilted = plane(tilted_normal, tilted_normal.dot(on_both));
-    // A floor point 5 cm before the crossing: 1.8 cm off the tilted plane, on the floor.
+    // A floor point 5 cm before the crossing: 1.7 cm off the tilted plane, on the floor.
     let point = Vec3::new(0.0, -1.3, -2.95);
     let pixel = camera.project(point).unwrap().0;
     for (surfaces, floor_index) in [
