@@ -229,8 +229,7 @@ impl SupportSurface {
     /// (module docs, "Noise model"). `None` when the pixel is outside the image polygon or the
     /// point beyond that distance.
     fn offness(&self, pixel: Vec2, point: Vec3, tolerance: f32, inverse_depth: f32) -> Option<f32> {
-        // |Δw| = |distance| / (Z·|D|) along the point's ray.
-        let allowed = -point.z * tolerance.max(inverse_depth * self.offset.abs());
+        let allowed = allowed_off_plane(-point.z, self.offset, tolerance, inverse_depth);
         let distance = self.distance(point).abs();
         // Compared before dividing: a zero allowance holds a point exactly on the plane, and a
         // point behind the camera (negative allowance) nothing.
@@ -899,11 +898,14 @@ impl Plane {
 
     /// Whether the point lies within the tolerance's distance of the plane (normal not asked).
     fn on_plane(&self, q: &Point, tolerance: &Tolerance) -> bool {
-        // |Δw| = |distance| / (Z·|D|) along the point's ray (module docs).
         let distance = (self.normal.dot(q.p) - self.offset).abs();
-        let allowed =
-            q.depth * (tolerance.relative).max(tolerance.inverse_depth * self.offset.abs());
-        distance <= allowed
+        distance
+            <= allowed_off_plane(
+                q.depth,
+                self.offset,
+                tolerance.relative,
+                tolerance.inverse_depth,
+            )
     }
 
     /// Whether the point hides the plane: it lies between the camera and where its ray meets the
@@ -913,6 +915,16 @@ impl Plane {
         let along = self.normal.dot(q.p);
         self.on_plane(q, tolerance) || (along < 0.0 && along > self.offset)
     }
+}
+
+/// How far (metres) a point at `depth` may lie off a plane at distance `offset` from the camera
+/// and still be on it: `relative` × its depth, or `inverse_depth` (1/m) of the plane's inverse
+/// depth along its ray, whichever is larger (module docs, "Noise model"). `ScoreSample` repeats
+/// this arithmetic in its vectorised loop.
+#[inline(always)]
+fn allowed_off_plane(depth: f32, offset: f32, relative: f32, inverse_depth: f32) -> f32 {
+    // |Δw| = |distance| / (Z·|D|) along the point's ray.
+    depth * relative.max(inverse_depth * offset.abs())
 }
 
 /// Spacing (in grid steps) of the second differences the plane tolerance's noise is measured
