@@ -366,6 +366,39 @@ fn a_table_top_tilted_by_the_matchers_bias_is_level_and_a_ramp_is_not() {
     assert!((tilt - 7.0).abs() < 1.0, "ramp tilt {tilt}°, true 7°");
 }
 
+#[test]
+fn a_ramp_beside_the_floor_does_not_tilt_up() {
+    // A long ramp sloping 4–7° beside the floor: both planes lie within 10° of each other, so
+    // their mean sits between them, and under little noise neither levels to that mean. Up must
+    // be the floor's (the stop-34 code gives 1.2–3.2° here), and a ramp clearly steeper than
+    // the matcher's bias (5°, 7° under little noise) stays one sloped surface.
+    for (tilt, sigma_d) in [
+        (4.0, 0.05),
+        (5.0, 0.05),
+        (7.0, 0.05),
+        (7.0, 0.2),
+        (7.0, 0.5),
+    ] {
+        let (found, up, on_ramp) = board_above_a_floor(tilt, Vec2::new(1.2, 3.0), sigma_d);
+        assert_eq!(found.up_source, UpSource::Planes);
+        let up_error = found.up.angle_between(up).to_degrees();
+        assert!(
+            up_error < 0.5,
+            "{tilt}° ramp, {sigma_d} px noise: up {up_error}° off"
+        );
+        if sigma_d < 0.1 && tilt > 4.5 {
+            let [ramp] = on_ramp.as_slice() else {
+                panic!("{tilt}° ramp: not one surface on it: {found:#?}")
+            };
+            let ramp_tilt = ramp.normal.angle_between(up).to_degrees();
+            assert!(
+                (ramp_tilt - tilt).abs() < 0.5,
+                "ramp tilt {ramp_tilt}°, true {tilt}°"
+            );
+        }
+    }
+}
+
 /// A board of `size` (m, across × along the view) tilted `tilt_deg` towards the camera, centred
 /// 0.7 m below a camera pitched 20° down and 2.7 m ahead of it, above a floor at [`FLOOR_Y`];
 /// depth under `sigma_d` px of disparity noise (12 cm baseline, 280 px focal length). Returns the

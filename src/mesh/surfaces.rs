@@ -65,8 +65,12 @@
 //! "Up" is the inlier-weighted mean normal of the near-horizontal planes (normals within 35° of the
 //! camera's +Y, or of −Y for ceilings: the gravity prior of a camera pitched or rolled by less than
 //! that) that agree within 10° with the direction most of their points agree with, estimated once
-//! more from only those of them that level (a sloped plane says nothing about gravity); with no
-//! such plane it falls back to the camera's +Y (the image's "up", i.e. −image-y).
+//! more from only those of them that level (a sloped plane says nothing about gravity). Which
+//! planes level is judged against the direction that levels the most points: that mean, or one
+//! of the planes' own normals. A floor and a 5° ramp beside it lie within 10° of each other, and
+//! under little noise neither levels to their mean, which would tilt up by half the ramp's slope;
+//! the floor's normal levels the floor and not the ramp. With no near-horizontal plane, up falls
+//! back to the camera's +Y (the image's "up", i.e. −image-y).
 
 use glam::{DVec3, Vec2, Vec3};
 
@@ -614,17 +618,41 @@ fn detect(
 
 /// Up from the near-horizontal planes ([`estimate_up`]), estimated once more from only those of
 /// them that level to it: a sloped plane says nothing about gravity.
+///
+/// Which planes level is decided against the up that most of their points level to: the mean
+/// ([`estimate_up`]'s first answer) or one of the planes' own normals. Against the mean alone, a
+/// floor and a 5° ramp beside it (both within [`estimate_up`]'s 10° of each other) pull it
+/// between them, neither levels to it under little noise, and the mean, tilted by half the
+/// ramp's slope, would stand; against the floor's normal the floor levels and the ramp does not.
 fn level_up(found: &[Found], points: &[Point]) -> (Vec3, UpSource) {
-    let (up, source) = estimate_up(found, points);
+    let (mean, source) = estimate_up(found, points);
     if source != UpSource::Planes {
-        return (up, source);
+        return (mean, source);
     }
-    let level = found
+    let measured = |f: &Found| f.piece.iter().filter(|&&i| points[i].measured).count();
+    let levelling = |up: Vec3| -> (usize, Vec<&Found>) {
+        let level: Vec<&Found> = found
+            .iter()
+            .filter(|f| levelled(&f.plane, &f.piece, points, up).is_some())
+            .collect();
+        (level.iter().map(|f| measured(f)).sum(), level)
+    };
+    // Each plane's normal on the side of the mean (a ceiling's flipped), and planes that level
+    // to nothing but themselves are no better than the mean: ties go to the mean, tried first.
+    let oriented = found
         .iter()
-        .filter(|f| levelled(&f.plane, &f.piece, points, up).is_some());
-    match estimate_up(level, points) {
+        .map(|f| f.plane.normal * f.plane.normal.dot(mean).signum())
+        .filter(|n| n.angle_between(mean).to_degrees() <= LEVEL_MAX_TILT_DEG);
+    let mut best = levelling(mean);
+    for candidate in oriented {
+        let tried = levelling(candidate);
+        if tried.0 > best.0 {
+            best = tried;
+        }
+    }
+    match estimate_up(best.1, points) {
         (refined, UpSource::Planes) => (refined, UpSource::Planes),
-        _ => (up, source),
+        _ => (mean, source),
     }
 }
 
