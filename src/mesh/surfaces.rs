@@ -619,10 +619,10 @@ fn detect(
 /// Up from the near-horizontal planes ([`estimate_up`]), estimated once more from only those of
 /// them that level to it: a sloped plane says nothing about gravity.
 ///
-/// Which planes level is decided against the up that most of their points level to: the mean
-/// ([`estimate_up`]'s first answer) or one of the planes' own normals. Against the mean alone, a
-/// floor and a 5° ramp beside it (both within [`estimate_up`]'s 10° of each other) pull it
-/// between them, neither levels to it under little noise, and the mean, tilted by half the
+/// Which planes level is decided against the direction to which the most measured points level:
+/// the mean ([`estimate_up`]'s first answer) or one of the planes' own normals. Against the mean
+/// alone, a floor and a 5° ramp beside it (both within [`estimate_up`]'s 10° of each other) pull
+/// it between them, neither levels to it under little noise, and the mean, tilted by half the
 /// ramp's slope, would stand; against the floor's normal the floor levels and the ramp does not.
 fn level_up(found: &[Found], points: &[Point]) -> (Vec3, UpSource) {
     let (mean, source) = estimate_up(found, points);
@@ -637,8 +637,9 @@ fn level_up(found: &[Found], points: &[Point]) -> (Vec3, UpSource) {
             .collect();
         (level.iter().map(|f| measured(f)).sum(), level)
     };
-    // Each plane's normal on the side of the mean (a ceiling's flipped), and planes that level
-    // to nothing but themselves are no better than the mean: ties go to the mean, tried first.
+    // Candidates: the mean first, then each plane's normal within 10° of it, on its side (a
+    // ceiling's flipped). A candidate replaces the best only when more points level to it, so
+    // ties keep the mean.
     let oriented = found
         .iter()
         .map(|f| f.plane.normal * f.plane.normal.dot(mean).signum())
