@@ -637,13 +637,15 @@ fn level_up(found: &[Found], points: &[Point]) -> (Vec3, UpSource) {
             .collect();
         (level.iter().map(|f| measured(f)).sum(), level)
     };
-    // Candidates: the mean first, then each plane's normal within 10° of it, on its side (a
-    // ceiling's flipped). A candidate replaces the best only when more points level to it, so
-    // ties keep the mean.
+    // Candidates: the mean first, then the normal of each plane that could stand for up (within
+    // `estimate_up`'s gravity prior and 10° of the mean), on the mean's side (a ceiling's
+    // flipped). A candidate replaces the best only when more points level to it, so ties keep
+    // the mean.
+    let cos_gate = MAX_UP_TILT_DEG.to_radians().cos();
     let oriented = found
         .iter()
         .map(|f| f.plane.normal * f.plane.normal.dot(mean).signum())
-        .filter(|n| n.angle_between(mean).to_degrees() <= LEVEL_MAX_TILT_DEG);
+        .filter(|n| n.y >= cos_gate && n.angle_between(mean).to_degrees() <= LEVEL_MAX_TILT_DEG);
     let mut best = levelling(mean);
     for candidate in oriented {
         let tried = levelling(candidate);
