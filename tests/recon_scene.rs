@@ -399,6 +399,31 @@ fn a_ramp_beside_the_floor_does_not_tilt_up() {
     }
 }
 
+#[test]
+fn a_shallow_ramp_is_one_sloped_surface_not_level_strips() {
+    // Ramps of 3–4° are no steeper than the matcher's bias on a table top (the level search
+    // takes a band tilted that much for level), so only where the band ends tells them apart: a
+    // band across a ramp goes on as the ramp's plane. The stop-34 code cut 3.5° and 4° ramps into
+    // a sloped part and a level strip.
+    for (tilt, sigma_d) in [
+        (3.0, 0.05),
+        (3.5, 0.05),
+        (3.5, 0.2),
+        (4.0, 0.05),
+        (4.0, 0.2),
+    ] {
+        let (found, up, on_ramp) = board_above_a_floor(tilt, Vec2::new(1.2, 3.0), sigma_d);
+        let [ramp] = on_ramp.as_slice() else {
+            panic!("{tilt}° ramp, {sigma_d} px noise: not one surface on it: {found:#?}")
+        };
+        let ramp_tilt = ramp.normal.angle_between(up).to_degrees();
+        assert!(
+            (ramp_tilt - tilt).abs() < 0.5,
+            "{tilt}° ramp, {sigma_d} px noise: tilt {ramp_tilt}°"
+        );
+    }
+}
+
 /// A board of `size` (m, across × along the view) tilted `tilt_deg` towards the camera, centred
 /// 0.7 m below a camera pitched 20° down and 2.7 m ahead of it, above a floor at [`FLOOR_Y`];
 /// depth under `sigma_d` px of disparity noise (12 cm baseline, 280 px focal length). Returns the

@@ -59,8 +59,9 @@
 //! it, a plane tipped through the table and the objects' fronts can hold more points than the
 //! table alone, and RANSAC takes the larger. A level band is a surface when its own fit levels,
 //! or tilts by at most 4° (the matcher's fronto-parallel bias on such a table: 3° measured), and
-//! the surface ends where the band ends (a band across a ramp is a strip of a larger plane). Up
-//! stays the first search's.
+//! the surface ends where the band ends (a band across a ramp is a strip of a larger plane,
+//! judged among all the points no surface has claimed, including those of bands already found
+//! not to be level). Up stays the first search's.
 //!
 //! "Up" is the inlier-weighted mean normal of the near-horizontal planes (normals within 35° of the
 //! camera's +Y, or of −Y for ceilings: the gravity prior of a camera pitched or rolled by less than
@@ -789,7 +790,7 @@ impl Search<'_> {
                 .then(|| fit_plane_robust(points, &measured_or_all(points, &piece), self.camera))
                 .flatten();
             let Some((fitted, level)) =
-                fitted.and_then(|f| Some((f, self.as_level(&pool, &f, &piece, up)?)))
+                fitted.and_then(|f| Some((f, self.as_level(remaining, &f, &piece, up)?)))
             else {
                 misses += 1;
                 drop_from(&mut pool, &inliers, points.len());
@@ -809,14 +810,25 @@ impl Search<'_> {
     /// The level plane of a level hypothesis' `piece` whose free fit is `fitted`, when the piece
     /// is a level surface: `fitted` levels ([`levelled`]) or is tilted from `up` by at most
     /// [`LEVEL_BIAS_TILT_DEG`], and the surface ends where the level band ends — `fitted`'s own
-    /// connected inliers in `pool` are at most [`LEVEL_BAND_RATIO`] × as many as the piece (a
-    /// band across a ramp is a strip of the ramp's plane).
+    /// connected inliers among the `unclaimed` points are at most [`LEVEL_BAND_RATIO`] × as many
+    /// as the piece (a band across a ramp is a strip of the ramp's plane).
+    ///
+    /// Why the unclaimed points and not the level search's pool: the pool loses the points of
+    /// every band found not to be level, so on a ramp the bands rejected first eat it away, and a
+    /// later band across what is left looks like a surface that ends (a 3.5° ramp came out as a
+    /// sloped part and a level one).
     ///
     /// Why the tilt rule: the matcher's depth of a narrow table top seen at a grazing angle is
     /// tilted by its fronto-parallel bias (3° on a 256-spp render of `clutter`,
     /// docs/reconstruction-eval.md, stop 32), and because that error is systematic, the levelled
     /// plane fits it clearly worse than its own fit, as it would a real slope.
-    fn as_level(&self, pool: &[usize], fitted: &Plane, piece: &[usize], up: Vec3) -> Option<Plane> {
+    fn as_level(
+        &self,
+        unclaimed: &[usize],
+        fitted: &Plane,
+        piece: &[usize],
+        up: Vec3,
+    ) -> Option<Plane> {
         let points = self.points;
         let level = match levelled(fitted, piece, points, up) {
             Some(level) => level,
@@ -827,7 +839,7 @@ impl Search<'_> {
         };
         let along = self
             .grid
-            .largest_component(points, &self.inliers(pool, fitted));
+            .largest_component(points, &self.inliers(unclaimed, fitted));
         (along.len() as f32 <= LEVEL_BAND_RATIO * piece.len() as f32).then_some(level)
     }
 
@@ -1552,8 +1564,8 @@ const LEVEL_RESIDUAL_RATIO: f64 = 1.25;
 
 /// How many more connected inliers a level band's own fitted plane may have for the band to be a
 /// level surface ([`Search::as_level`]). On the 256-spp `clutter` render the table top's band has
-/// 329 points and its fitted plane 391 (1.19×); a band across a plane that really slopes is a
-/// small part of it.
+/// 329 points and its fitted plane 391 (1.19×, counted in the level search's pool at stop 33); a
+/// band across a plane that really slopes is a small part of it.
 const LEVEL_BAND_RATIO: f32 = 1.5;
 
 /// Largest tilt from up (degrees) of a level band's fitted plane that is put down to the
