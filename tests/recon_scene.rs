@@ -387,14 +387,7 @@ fn a_ramp_beside_the_floor_does_not_tilt_up() {
             "{tilt}° ramp, {sigma_d} px noise: up {up_error}° off"
         );
         if sigma_d < 0.1 && tilt > 4.5 {
-            let [ramp] = on_ramp.as_slice() else {
-                panic!("{tilt}° ramp: not one surface on it: {found:#?}")
-            };
-            let ramp_tilt = ramp.normal.angle_between(up).to_degrees();
-            assert!(
-                (ramp_tilt - tilt).abs() < 0.5,
-                "ramp tilt {ramp_tilt}°, true {tilt}°"
-            );
+            assert_one_surface_at_slope(&found, up, &on_ramp, tilt, sigma_d);
         }
     }
 }
@@ -413,15 +406,26 @@ fn a_shallow_ramp_is_one_sloped_surface_not_level_strips() {
         (4.0, 0.2),
     ] {
         let (found, up, on_ramp) = board_above_a_floor(tilt, Vec2::new(1.2, 3.0), sigma_d);
-        let [ramp] = on_ramp.as_slice() else {
-            panic!("{tilt}° ramp, {sigma_d} px noise: not one surface on it: {found:#?}")
-        };
-        let ramp_tilt = ramp.normal.angle_between(up).to_degrees();
-        assert!(
-            (ramp_tilt - tilt).abs() < 0.5,
-            "{tilt}° ramp, {sigma_d} px noise: tilt {ramp_tilt}°"
-        );
+        assert_one_surface_at_slope(&found, up, &on_ramp, tilt, sigma_d);
     }
+}
+
+/// The ramp of [`board_above_a_floor`] came out as one surface within 0.5° of its true slope.
+fn assert_one_surface_at_slope(
+    found: &Surfaces,
+    up: Vec3,
+    on_ramp: &[SupportSurface],
+    tilt: f32,
+    sigma_d: f32,
+) {
+    let [ramp] = on_ramp else {
+        panic!("{tilt}° ramp, {sigma_d} px noise: not one surface on it: {found:#?}")
+    };
+    let ramp_tilt = ramp.normal.angle_between(up).to_degrees();
+    assert!(
+        (ramp_tilt - tilt).abs() < 0.5,
+        "{tilt}° ramp, {sigma_d} px noise: tilt {ramp_tilt}°"
+    );
 }
 
 /// A board of `size` (m, across × along the view) tilted `tilt_deg` towards the camera, centred

@@ -630,13 +630,12 @@ fn level_up(found: &[Found], points: &[Point]) -> (Vec3, UpSource) {
     if source != UpSource::Planes {
         return (mean, source);
     }
-    let measured = |f: &Found| f.piece.iter().filter(|&&i| points[i].measured).count();
     let levelling = |up: Vec3| -> (usize, Vec<&Found>) {
         let level: Vec<&Found> = found
             .iter()
             .filter(|f| levelled(&f.plane, &f.piece, points, up).is_some())
             .collect();
-        (level.iter().map(|f| measured(f)).sum(), level)
+        (level.iter().map(|f| f.measured(points)).sum(), level)
     };
     // Candidates: the mean first, then the normal of each plane that could stand for up (within
     // `estimate_up`'s gravity prior and 10° of the mean), on the mean's side (a ceiling's
@@ -682,6 +681,14 @@ struct Found {
     piece: Vec<usize>,
     /// Found by the search for level planes: level, whatever its fitted tilt ([`Search::level_planes`]).
     level: bool,
+}
+
+impl Found {
+    /// How many of its points are measured (not filled): what a plane's say on up weighs, since
+    /// filled depth says nothing about a plane's tilt.
+    fn measured(&self, points: &[Point]) -> usize {
+        self.piece.iter().filter(|&&i| points[i].measured).count()
+    }
 }
 
 impl Search<'_> {
@@ -1469,8 +1476,7 @@ fn estimate_up<'a>(
         .into_iter()
         .filter_map(|f| {
             let n = f.plane.normal;
-            // Weighed by measured points: filled depth says nothing about a plane's tilt.
-            let weight = f.piece.iter().filter(|&&i| points[i].measured).count();
+            let weight = f.measured(points);
             if n.y >= cos_gate {
                 Some((n, weight))
             } else if -n.y >= cos_gate {
