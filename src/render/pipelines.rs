@@ -42,7 +42,7 @@ impl TargetFormats {
         self.shadow == wgpu::TextureFormat::Rgba16Float
     }
 }
-/// Every depth buffer (reversed Z: 1 near, 0 far; compare `Greater`).
+/// Every depth buffer (reversed Z: 1 near, 0 far; compare `GreaterEqual`).
 pub(crate) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 7] = wgpu::vertex_attr_array![
@@ -146,7 +146,11 @@ fn depth_state(write: bool) -> wgpu::DepthStencilState {
     wgpu::DepthStencilState {
         format: DEPTH_FORMAT,
         depth_write_enabled: Some(write),
-        depth_compare: Some(wgpu::CompareFunction::Greater),
+        // Not `Greater`: wgpu's OpenGL backend maps clip z from [0, 1] to [−1, 1] as `2z − w`,
+        // which rounds reversed depths under about 3·10⁻⁸ (beyond about 3·10⁷ near-plane
+        // distances, or the last few percent of a shadow frustum whose near plane is 10⁻⁶ of
+        // its far) to exactly the cleared 0; they must still pass.
+        depth_compare: Some(wgpu::CompareFunction::GreaterEqual),
         stencil: wgpu::StencilState::default(),
         bias: wgpu::DepthBiasState::default(),
     }

@@ -24,6 +24,26 @@ use crate::light::LightKind;
 /// Most memory all shadow maps of one render may take; larger requests get smaller maps.
 pub const SHADOW_MEMORY_BUDGET: u64 = 256 << 20;
 
+/// The layer count to create the shadow-map texture with, for `used` layers, on `backend`.
+///
+/// wgpu's OpenGL backend creates each texture with one GL target, and guesses it from the
+/// descriptor: a square 2D texture whose layer count is a multiple of 6 becomes a cube map (or
+/// cube-map array), since a view cannot change it later (wgpu-hal `gles`,
+/// `Texture::get_info_from_desc`). Our 2D-array view of such a texture does not read the maps
+/// we rendered, so shadows came out wrong on OpenGL whenever the count was a multiple of 6: a
+/// point light's cube of six views, three lights of two layers each. One unused layer more keeps
+/// the texture a 2D array there; other backends get exactly `used`. An empty texture still needs
+/// one layer.
+fn shadow_texture_layers(used: u32, backend: wgpu::Backend) -> u32 {
+    if used == 0 {
+        1
+    } else if backend == wgpu::Backend::Gl && used.is_multiple_of(6) {
+        used + 1
+    } else {
+        used
+    }
+}
+
 /// The real-time renderer: pipelines compiled once, reused for every render on its device.
 ///
 /// Thread safety: `render` takes `&self`; wgpu devices and queues are shareable, so one renderer
@@ -32,6 +52,9 @@ pub struct Renderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
     pipelines: Pipelines,
+    /// The device's backend: wgpu's OpenGL backend needs the shadow maps' layer count adjusted
+    /// ([`shadow_texture_layers`]).
+    backend: wgpu::Backend,
 }
 
 impl std::fmt::Debug for Renderer {
@@ -165,6 +188,7 @@ impl Renderer {
             device: device.clone(),
             queue: queue.clone(),
             pipelines,
+            backend: device.adapter_info().backend,
         })
     }
 
@@ -245,14 +269,23 @@ impl Renderer {
                 LightShadowPlan::Skip(_) => 0,
             })
             .sum();
+        // Room for the layer `shadow_texture_layers` may add: a count within `max_layers` stays
+        // within the device's limit once padded.
+        let max_layers = if self.backend == wgpu::Backend::Gl
+            && limits.max_texture_array_layers.is_multiple_of(6)
+        {
+            limits.max_texture_array_layers - 1
+        } else {
+            limits.max_texture_array_layers
+        };
         let mut layer_count = view_count * layers_per_view;
-        if layer_count > limits.max_texture_array_layers {
+        if layer_count > max_layers {
             // Keep the lights that fit; the rest are unshadowed.
             let mut used = 0;
             for (i, p) in plans.iter_mut().enumerate() {
                 if let LightShadowPlan::Views(v, _) = p {
                     let need = v.len() as u32 * layers_per_view;
-                    if used + need > limits.max_texture_array_layers {
+                    if used + need > max_layers {
                         *p = LightShadowPlan::Skip("device's texture-array layer limit".into());
                         timer.skipped(
                             &format!("render.light[{i}].shadow_map"),
@@ -266,7 +299,10 @@ impl Renderer {
             layer_count = used;
         }
         while shadow_size > 128
-            && layer_count as u64 * (shadow_size as u64).pow(2) * 8 > SHADOW_MEMORY_BUDGET
+            && shadow_texture_layers(layer_count, self.backend) as u64
+                * (shadow_size as u64).pow(2)
+                * 8
+                > SHADOW_MEMORY_BUDGET
         {
             shadow_size /= 2;
         }
@@ -515,7 +551,7 @@ impl Renderer {
             size: wgpu::Extent3d {
                 width: if layer_count > 0 { shadow_size } else { 1 },
                 height: if layer_count > 0 { shadow_size } else { 1 },
-                depth_or_array_layers: layer_count.max(1),
+                depth_or_array_layers: shadow_texture_layers(layer_count, self.backend),
             },
             mip_level_count: 1,
             sample_count: 1,
@@ -1006,5 +1042,23 @@ fn photo_only(inputs: &RenderInputs<'_>, records: Vec<RenderRecord>) -> Composit
         artefact_depth: Raster::filled(w, h, 0.0),
         artefact_layer: Raster::filled(w, h, [0.0; 4]),
         records,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shadow_texture_layers;
+
+    /// wgpu's OpenGL backend takes a square 2D texture with 6·k layers for a cube (array); the
+    /// shadow maps must never have such a count there, and need at least one layer anywhere.
+    #[test]
+    fn shadow_maps_are_never_taken_for_a_cube_on_opengl() {
+        for used in 0..=200u32 {
+            let gl = shadow_texture_layers(used, wgpu::Backend::Gl);
+            assert!(gl >= used.max(1) && gl <= used + 1, "{used} → {gl}");
+            assert_ne!(gl % 6, 0, "{used} layers on OpenGL");
+            let vulkan = shadow_texture_layers(used, wgpu::Backend::Vulkan);
+            assert_eq!(vulkan, used.max(1));
+        }
     }
 }
