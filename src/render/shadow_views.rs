@@ -174,9 +174,13 @@ pub(crate) fn plan(
                 .fold(0.0f32, f32::max)
                 * 1.01;
             let far = far.max(f32::MIN_POSITIVE * 1e6);
-            // The depth buffer is reversed f32, so a tiny near plane costs no precision. A light
-            // with a body (a bulb seen in the photo sits a radius behind its own meshed front)
-            // clips what lies within its body so that the lamp does not shadow its own light.
+            // The depth buffer is reversed f32, so a tiny near plane costs no precision (except
+            // on OpenGL, whose [−1, 1] remap keeps depth only to about 6·10⁻⁸: there, two
+            // casters at about `d` from the light whose distances differ by less than about
+            // 6 %·d²/far may be stored in the wrong order, which matters only for soft shadows'
+            // blocker distance and for thin objects shadowing themselves). A light with a body
+            // (a bulb seen in the photo sits a radius behind its own meshed front) clips what
+            // lies within its body so that the lamp does not shadow its own light.
             let near = (far * 1e-6).max(light.body_reach().min(0.1 * far));
             let (centre, radius) = bounding_sphere(&artefacts);
             let to_centre = centre - pos;
