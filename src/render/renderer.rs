@@ -27,20 +27,20 @@ pub const SHADOW_MEMORY_BUDGET: u64 = 256 << 20;
 /// The layer count to create the shadow-map texture with, for `used` layers, on `backend`.
 ///
 /// wgpu's OpenGL backend creates each texture with one GL target, and guesses it from the
-/// descriptor: a square 2D texture whose layer count is a multiple of 6 becomes a cube map (or
-/// cube-map array), since a view cannot change it later (wgpu-hal `gles`,
-/// `Texture::get_info_from_desc`). Our 2D-array view of such a texture does not read the maps
-/// we rendered, so shadows came out wrong on OpenGL whenever the count was a multiple of 6: a
-/// point light's cube of six views, three lights of two layers each. One unused layer more keeps
-/// the texture a 2D array there; other backends get exactly `used`. An empty texture still needs
-/// one layer.
+/// descriptor, since a view cannot change it later (wgpu-hal `gles`,
+/// `Texture::get_info_from_desc`): a 2D texture of one layer becomes a plain 2D texture, and a
+/// square one whose layer count is a multiple of 6 a cube map (or cube-map array). Our 2D-array
+/// view of either does not read the maps we rendered, so shadows came out wrong on OpenGL for
+/// one layer (one light, and only the artefacts or only the scene mesh casting) and for 6·k (a
+/// point light's cube of six views, three lights of two layers each). There the texture gets
+/// one unused layer more, which keeps it a 2D array; other backends get exactly `used` (an
+/// empty texture still needs one layer).
 fn shadow_texture_layers(used: u32, backend: wgpu::Backend) -> u32 {
-    if used == 0 {
-        1
-    } else if backend == wgpu::Backend::Gl && used.is_multiple_of(6) {
-        used + 1
+    let gl = backend == wgpu::Backend::Gl;
+    if gl && (used <= 1 || used.is_multiple_of(6)) {
+        used.max(1) + 1
     } else {
-        used
+        used.max(1)
     }
 }
 
@@ -1049,13 +1049,14 @@ fn photo_only(inputs: &RenderInputs<'_>, records: Vec<RenderRecord>) -> Composit
 mod tests {
     use super::shadow_texture_layers;
 
-    /// wgpu's OpenGL backend takes a square 2D texture with 6·k layers for a cube (array); the
-    /// shadow maps must never have such a count there, and need at least one layer anywhere.
+    /// wgpu's OpenGL backend takes a 2D texture of one layer for a plain 2D texture and a square
+    /// one with 6·k layers for a cube (array); the shadow maps must never have such a count
+    /// there, and need at least one layer anywhere.
     #[test]
-    fn shadow_maps_are_never_taken_for_a_cube_on_opengl() {
+    fn shadow_maps_are_always_a_2d_array_on_opengl() {
         for used in 0..=200u32 {
             let gl = shadow_texture_layers(used, wgpu::Backend::Gl);
-            assert!(gl >= used.max(1) && gl <= used + 1, "{used} → {gl}");
+            assert!(gl >= used.max(2) && gl <= used.max(1) + 1, "{used} → {gl}");
             assert_ne!(gl % 6, 0, "{used} layers on OpenGL");
             let vulkan = shadow_texture_layers(used, wgpu::Backend::Vulkan);
             assert_eq!(vulkan, used.max(1));
