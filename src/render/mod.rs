@@ -30,7 +30,10 @@
 //!
 //! Shadow maps, the shadow ratio and the artefact depth are 32-bit float targets, or 16-bit ones
 //! on a device that cannot render into 32-bit floats (wgpu's OpenGL backend on some drivers;
-//! `pipelines::TargetFormats`).
+//! `pipelines::TargetFormats`). Two more allowances for that backend: the shadow maps' array
+//! never has a layer count it would take for a plain 2D texture or a cube map
+//! (`renderer::shadow_texture_layers`), and every depth test is `GreaterEqual`, since its
+//! remap of depth to [−1, 1] rounds reversed depths far away to the cleared 0.
 
 // The renderer draws artefacts, so it needs the glTF types (feature `gltf`); the context does not.
 #[cfg(feature = "gltf")]
