@@ -72,7 +72,7 @@ fn instance(backends: wgpu::Backends) -> wgpu::Instance {
 
 /// Adapters of the first backend group that has any (see `WGPU_BACKEND`), with the instance that
 /// found them.
-fn find_adapters() -> Option<(wgpu::Instance, Vec<wgpu::Adapter>)> {
+pub(super) fn find_adapters() -> Option<(wgpu::Instance, Vec<wgpu::Adapter>)> {
     backend_choices().into_iter().find_map(|backends| {
         let instance = instance(backends);
         let adapters = pollster::block_on(instance.enumerate_adapters(backends));

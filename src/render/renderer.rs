@@ -44,6 +44,26 @@ fn shadow_texture_layers(used: u32, backend: wgpu::Backend) -> u32 {
     }
 }
 
+/// What a wgpu error says, on one line: its description (for validation and internal errors,
+/// whose `Display` is only "Validation Error" or "Internal error"), else its `Display` and the
+/// chain of its sources.
+fn wgpu_error_text(e: &wgpu::Error) -> String {
+    match e {
+        wgpu::Error::Validation { description, .. } | wgpu::Error::Internal { description, .. } => {
+            description.split_whitespace().collect::<Vec<_>>().join(" ")
+        }
+        other => {
+            let mut text = other.to_string();
+            let mut source = std::error::Error::source(other);
+            while let Some(s) = source {
+                text.push_str(&format!(": {s}"));
+                source = s.source();
+            }
+            text
+        }
+    }
+}
+
 /// The real-time renderer: pipelines compiled once, reused for every render on its device.
 ///
 /// Thread safety: `render` takes `&self`; wgpu devices and queues are shareable, so one renderer
@@ -181,7 +201,8 @@ impl Renderer {
         let pipelines = Pipelines::new(device, formats);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu(format!(
-                "creating the render pipelines failed: {e}"
+                "creating the render pipelines failed: {}",
+                wgpu_error_text(&e)
             )));
         }
         Ok(Renderer {
@@ -894,7 +915,10 @@ impl Renderer {
         self.queue.submit([encoder.finish()]);
         for scope in [validation_scope, oom_scope] {
             if let Some(e) = pollster::block_on(scope.pop()) {
-                return Err(Error::Gpu(format!("render: the device failed: {e}")));
+                return Err(Error::Gpu(format!(
+                    "render: the device failed: {}",
+                    wgpu_error_text(&e)
+                )));
             }
         }
         let layer_bytes = read_texture(device, &self.queue, &layer)?;

@@ -835,3 +835,31 @@ fn a_single_shadow_layer_shadows_only_under_the_caster() {
         );
     }
 }
+
+/// The renderer reads its lights, shadow views and occluding spheres from storage buffers in
+/// the fragment shader. A device that allows none there (WebGL 2, many OpenGL ES 3.0 drivers)
+/// cannot run it, and must be told so by a `Gpu` error when the renderer is made, not a panic.
+#[test]
+fn a_device_without_fragment_storage_buffers_is_a_gpu_error() {
+    let (_instance, adapters) = super::context::find_adapters().expect("a GPU adapter");
+    let adapter = &adapters[0];
+    let limits = wgpu::Limits {
+        max_storage_buffers_per_shader_stage: 0,
+        ..adapter.limits()
+    };
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        required_limits: limits,
+        ..Default::default()
+    }))
+    .unwrap();
+    match Renderer::from_device(&device, &queue) {
+        Err(crate::Error::Gpu(message)) => {
+            // wgpu's reason, naming the limit, not only "Validation Error"; on one line.
+            assert!(
+                message.contains("max_storage_buffers_per_shader_stage") && !message.contains('\n'),
+                "{message}"
+            )
+        }
+        other => panic!("expected a Gpu error, got {other:?}"),
+    }
+}
