@@ -290,15 +290,13 @@ impl Renderer {
                 LightShadowPlan::Skip(_) => 0,
             })
             .sum();
-        // Room for the layer `shadow_texture_layers` may add: a count within `max_layers` stays
-        // within the device's limit once padded.
-        let max_layers = if self.backend == wgpu::Backend::Gl
-            && limits.max_texture_array_layers.is_multiple_of(6)
-        {
-            limits.max_texture_array_layers - 1
-        } else {
-            limits.max_texture_array_layers
-        };
+        // The most layers whose texture, with the layer `shadow_texture_layers` may add, stays
+        // within the device's limit (the limit itself, or one or two less on OpenGL).
+        let limit = limits.max_texture_array_layers;
+        let max_layers = (0..=limit)
+            .rev()
+            .find(|&n| shadow_texture_layers(n, self.backend) <= limit)
+            .unwrap_or(0);
         let mut layer_count = view_count * layers_per_view;
         if layer_count > max_layers {
             // Keep the lights that fit; the rest are unshadowed.
