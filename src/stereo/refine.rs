@@ -111,11 +111,53 @@ struct RowInput<'a> {
     y: usize,
 }
 
-crate::avx2_variant!(fn decide_row_fast<'a, 'b>(input: &'b RowInput<'a>, disp: &'b mut [f32], st: &'b mut [PixelState], conf: &'b mut [f32]) => decide_row);
+/// [`decide_row`] for this CPU. With AVX2 (which includes SSE4.1), each pixel's minima come from
+/// `phminposuw` (the smallest of eight `u16` and its first index in one instruction), and the
+/// usual coarse-to-fine windows get a copy of the loop with their length known at compile time.
+/// Elsewhere, the plain loops.
+fn decide_row_fast(
+    input: &RowInput<'_>,
+    disp: &mut [f32],
+    st: &mut [PixelState],
+    conf: &mut [f32],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if super::simd::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above).
+        unsafe {
+            match input.agg.k {
+                16 => decide_row_avx2::<16>(input, disp, st, conf),
+                32 => decide_row_avx2::<32>(input, disp, st, conf),
+                _ => decide_row_avx2::<0>(input, disp, st, conf),
+            }
+        }
+        return;
+    }
+    decide_row::<0, false>(input, disp, st, conf)
+}
 
-/// Winner, sub-pixel, uniqueness and L/R check of one row.
+/// [`decide_row`] compiled for AVX2, with `phminposuw`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn decide_row_avx2<const K: usize>(
+    input: &RowInput<'_>,
+    disp: &mut [f32],
+    st: &mut [PixelState],
+    conf: &mut [f32],
+) {
+    decide_row::<K, true>(input, disp, st, conf)
+}
+
+/// Winner, sub-pixel, uniqueness and L/R check of one row. `K` is the window's length
+/// (`agg.k`) when known at compile time, 0 otherwise; `MINPOS`: use [`minpos`], only where the
+/// code runs on a CPU with SSE4.1.
 #[inline(always)]
-fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], conf: &mut [f32]) {
+fn decide_row<const K: usize, const MINPOS: bool>(
+    input: &RowInput<'_>,
+    disp: &mut [f32],
+    st: &mut [PixelState],
+    conf: &mut [f32],
+) {
     let RowInput {
         agg,
         bases,
@@ -123,7 +165,8 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
         unit,
         y,
     } = *input;
-    let (w, k) = (agg.width, agg.k);
+    debug_assert!(K == 0 || K == agg.k);
+    let (w, k) = (agg.width, if K > 0 { K } else { agg.k });
     let s_row = &agg.s[y * w * k..(y + 1) * w * k];
     let bases = bases.map(|b| &b[y * w..(y + 1) * w]);
     // Integer winners of the left view, and of the right view from the same volume:
@@ -137,12 +180,17 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
     for x in 0..w {
         let s = &s_row[x * k..(x + 1) * k];
         let base = bases.map_or(0, |b| b[x] as usize);
-        let (bv, bi) = first_min(s);
+        let (bv, bi) = winner::<MINPOS>(s);
         // Right view: disparities d = base + i ≤ x only, i.e. right pixels x − base − i.
         if x >= base {
             let valid = (x - base + 1).min(k);
             let m0 = w - 1 - (x - base);
-            update_right(&mut mirrored[m0..m0 + valid], &s[..valid], base as u32);
+            if valid == k {
+                // The usual case, a whole window (of constant length when K is known).
+                update_right(&mut mirrored[m0..m0 + k], &s[..k], base as u32);
+            } else {
+                update_right(&mut mirrored[m0..m0 + valid], &s[..valid], base as u32);
+            }
         }
         best_left[x] = (base + bi) as u32;
         // U_p here, its confidence after the loop (divisions vectorise there, not here).
@@ -150,7 +198,7 @@ fn decide_row(input: &RowInput<'_>, disp: &mut [f32], st: &mut [PixelState], con
         // Unique when every disparity not adjacent to the winner costs at least
         // bv / (1 − uniqueness): compare the smallest of them once.
         if opts.uniqueness > 0 && (bi >= 2 || bi + 2 < k) {
-            let other = min_away_from(s, bi);
+            let other = runner_up::<MINPOS>(s, bi);
             if (other as u64) * (100 - opts.uniqueness as u64) < bv as u64 * 100 {
                 st[x] = PixelState::Mismatch;
                 continue;
@@ -240,6 +288,93 @@ fn min_away_from(s: &[u16], winner: usize) -> u16 {
         })
         .min()
         .unwrap_or(u16::MAX)
+}
+
+/// [`first_min`], by [`minpos`] when `MINPOS`.
+#[inline(always)]
+fn winner<const MINPOS: bool>(s: &[u16]) -> (u16, usize) {
+    #[cfg(target_arch = "x86_64")]
+    if MINPOS {
+        // SAFETY: `MINPOS` is only set in code that runs on CPUs with AVX2 (`decide_row_fast`).
+        return unsafe { minpos::first_min(s) };
+    }
+    first_min(s)
+}
+
+/// [`min_away_from`], by [`minpos`] when `MINPOS`.
+#[inline(always)]
+fn runner_up<const MINPOS: bool>(s: &[u16], winner: usize) -> u16 {
+    #[cfg(target_arch = "x86_64")]
+    if MINPOS {
+        // SAFETY: as in `winner`.
+        return unsafe { minpos::min_away_from(s, winner) };
+    }
+    min_away_from(s, winner)
+}
+
+/// [`first_min`] and [`min_away_from`] eight disparities at a time with SSE4.1's `phminposuw`.
+/// The compiler cannot find that instruction itself: its plain loops keep a running minimum and
+/// its index in scalar registers, which took most of the decision's time.
+#[cfg(target_arch = "x86_64")]
+mod minpos {
+    use std::arch::x86_64::*;
+
+    /// As [`super::first_min`].
+    ///
+    /// # Safety
+    /// The CPU must support SSE4.1.
+    #[inline]
+    #[target_feature(enable = "sse4.1")]
+    pub unsafe fn first_min(s: &[u16]) -> (u16, usize) {
+        let mut best = (u16::MAX as u32) << 16;
+        let chunks = s.chunks_exact(8);
+        let tail = chunks.remainder();
+        for (c, chunk) in chunks.enumerate() {
+            // SAFETY: `chunk` holds eight u16 (16 bytes); unaligned loads are allowed.
+            let v = unsafe { _mm_loadu_si128(chunk.as_ptr().cast()) };
+            // Bits 0–15: the smallest value; bits 16–18: its first index in the chunk.
+            let m = _mm_cvtsi128_si32(_mm_minpos_epu16(v)) as u32;
+            best = best.min((m & 0xFFFF) << 16 | (8 * c as u32 + (m >> 16)));
+        }
+        let start = s.len() - tail.len();
+        for (i, &v) in tail.iter().enumerate() {
+            best = best.min((v as u32) << 16 | (start + i) as u32);
+        }
+        ((best >> 16) as u16, (best & 0xFFFF) as usize)
+    }
+
+    /// As [`super::min_away_from`].
+    ///
+    /// # Safety
+    /// The CPU must support SSE4.1.
+    #[inline]
+    #[target_feature(enable = "sse4.1")]
+    pub unsafe fn min_away_from(s: &[u16], winner: usize) -> u16 {
+        // As in the plain version: index i is masked when i − (winner − 1) is 0, 1 or 2
+        // (wrapping), here per lane: min(rel, 2) == rel.
+        let first_masked = (winner as u16).wrapping_sub(1);
+        let lanes = _mm_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7);
+        let two = _mm_set1_epi16(2);
+        let mut acc = _mm_set1_epi16(-1);
+        let chunks = s.chunks_exact(8);
+        let tail = chunks.remainder();
+        for (c, chunk) in chunks.enumerate() {
+            // SAFETY: as in `first_min`.
+            let v = unsafe { _mm_loadu_si128(chunk.as_ptr().cast()) };
+            let offset = (8 * c as u16).wrapping_sub(first_masked);
+            let rel = _mm_add_epi16(lanes, _mm_set1_epi16(offset as i16));
+            let masked = _mm_cmpeq_epi16(_mm_min_epu16(rel, two), rel);
+            acc = _mm_min_epu16(acc, _mm_or_si128(v, masked));
+        }
+        let mut best = _mm_cvtsi128_si32(_mm_minpos_epu16(acc)) as u16;
+        let start = s.len() - tail.len();
+        for (i, &v) in tail.iter().enumerate() {
+            if ((start + i) as u16).wrapping_sub(first_masked) > 2 {
+                best = best.min(v);
+            }
+        }
+        best
+    }
 }
 
 /// The smallest value of `s` and its first index (`(u16::MAX, 0)` for an empty slice).
@@ -695,6 +830,39 @@ impl LocalFit<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    fn minpos_minima_match_the_plain_ones_with_ties_and_every_winner() {
+        if !std::is_x86_feature_detected!("sse4.1") {
+            return;
+        }
+        use crate::mesh::surfaces::XorShift;
+        let mut rng = XorShift(0x31a7);
+        for len in 0..=41 {
+            for round in 0..40 {
+                // Few distinct values, so ties are common; some all-saturated windows.
+                let top = [3, 50, 65535][round % 3];
+                let s: Vec<u16> = (0..len)
+                    .map(|_| {
+                        if round % 7 == 6 {
+                            u16::MAX
+                        } else {
+                            (rng.below(top) as u16).saturating_mul(if top == 3 { 1 } else { 1300 })
+                        }
+                    })
+                    .collect();
+                // SAFETY: SSE4.1 checked above.
+                let fast = unsafe { minpos::first_min(&s) };
+                assert_eq!(fast, first_min(&s), "first_min of {s:?}");
+                for winner in 0..len.max(1) + 1 {
+                    // SAFETY: as above.
+                    let fast = unsafe { minpos::min_away_from(&s, winner) };
+                    assert_eq!(fast, min_away_from(&s, winner), "winner {winner} of {s:?}");
+                }
+            }
+        }
+    }
 
     /// The local fit of one pixel written out plainly: every window pixel visited one at a time,
     /// the similarity weight by `exp`, the right view and its gradient interpolated at `x − d`.
