@@ -15,9 +15,10 @@
 //! pixel's path costs are stored between runs of `FAR`, when the windows start fewer than 16
 //! disparities apart; copied into the pixel's indices when they are further apart.
 //!
-//! Within a row, the path along the row runs pixel after pixel; the vertical and diagonal paths,
-//! which only read the row before, each run over the whole row on their own (short loops that
-//! keep their state in registers).
+//! Within a row, each pixel takes all of its paths at once: the path along the row continues from
+//! the pixel before it, the vertical and diagonal paths read only the row before, and the pixel's
+//! costs and sums are read and written once. The usual coarse-to-fine windows (16 and 32
+//! disparities) are compiled at their length.
 
 use std::sync::Mutex;
 
@@ -168,7 +169,13 @@ crate::avx2_variant!(fn run_sweep<'a, 'b, 'r>(sweep: &'b Sweep<'a>, rows: &'b Ro
 
 #[inline(always)]
 fn sweep_body(sweep: &Sweep<'_>, rows: &RowLocks<'_>) {
-    sweep.run(rows)
+    // The usual windows (coarse-to-fine's 16 and 32) compiled at their length: the recurrence's
+    // blocks and slices are then of constant size, without the per-pixel bounds and tail logic.
+    match sweep.k {
+        16 => sweep.run::<16>(rows),
+        32 => sweep.run::<32>(rows),
+        _ => sweep.run::<0>(rows),
+    }
 }
 
 struct Sweep<'a> {
@@ -226,18 +233,23 @@ impl PathRow {
 }
 
 impl Sweep<'_> {
+    /// The sweep over every row. `K`: the window's length `self.k` when known at compile time, 0
+    /// otherwise.
     #[inline(always)]
-    fn run(&self, rows: &RowLocks<'_>) {
+    fn run<const K: usize>(&self, rows: &RowLocks<'_>) {
         let (w, h, k) = (self.cost.width(), self.cost.height(), self.k);
         let mut scratch = Vec::new();
-        // Index 0: along the row; 1: vertical; 2, 3: the two diagonals. prev = row before.
+        // The paths from the previous row, in the row before (`prev`) and in this one (`cur`):
+        // 0 vertical, 1 and 2 the diagonals.
         let ndir = if self.diagonals { 3 } else { 1 };
         let mut prev: Vec<PathRow> = (0..ndir).map(|_| PathRow::new(w, k)).collect();
         let mut cur: Vec<PathRow> = (0..ndir).map(|_| PathRow::new(w, k)).collect();
-        // The row path: the previous pixel's and the current pixel's costs.
-        let mut hprev = PathRow::new(1, k);
-        let mut hcur = PathRow::new(1, k);
-        let mut hmin = 0u16;
+        // The path along the row: the previous pixel's and the current pixel's costs.
+        let mut along = AlongRow {
+            prev: PathRow::new(1, k),
+            cur: PathRow::new(1, k),
+            min: 0,
+        };
         // A path that enters the image here starts from zeros (then L = C).
         let mut start = vec![0u16; k + 2];
         start[0] = FAR;
@@ -245,7 +257,6 @@ impl Sweep<'_> {
         let start = &start[..];
         // A neighbour's costs re-indexed to the pixel's window, when the two are far apart.
         let mut aligned = vec![FAR; k + 2];
-        let p1 = self.pen.p1;
         let step_x: isize = if self.forward { 1 } else { -1 };
 
         for yi in 0..h {
@@ -289,67 +300,143 @@ impl Sweep<'_> {
                 }
                 None => &scratch,
             };
-            // Along the row: each pixel continues from the one before it.
-            for xi in 0..w {
-                let x = if self.forward { xi } else { w - 1 - xi };
-                let c = &costs[x * k..(x + 1) * k];
-                let sum = &mut s_row[x * k..(x + 1) * k];
-                let (src, minprev, p2) = if xi == 0 {
-                    (start, 0, self.pen.p2_table[0])
-                } else {
-                    let xq = (x as isize - step_x) as usize;
-                    let shift = row_bases.map_or(0, |b| b[x] as isize - b[xq] as isize);
-                    let p2 = self.pen.p2_table[g[x].abs_diff(g[xq]) as usize];
-                    (view_or_align(&hprev, 0, shift, &mut aligned), hmin, p2)
-                };
-                let out = hcur.window_mut(0);
-                // The first sweep here writes the row's sums, the second adds to them.
-                let m = if first {
-                    step::<true>(c, src, minprev, p1, p2, out, sum)
-                } else {
-                    step::<false>(c, src, minprev, p1, p2, out, sum)
-                };
-                hmin = m;
-                min_row[x] = if first {
-                    m
-                } else {
-                    min_row[x].saturating_add(m)
-                };
-                std::mem::swap(&mut hprev, &mut hcur);
-            }
-
-            // From the previous row: vertical, then the diagonals (x − step, x + step). No pixel
-            // of the row depends on another here, so each direction runs over the row on its own
-            // (short loops keep their state in registers).
-            for (dir, off) in [0isize, -1, 1].into_iter().take(ndir).enumerate() {
-                let (before, now) = (&prev[dir], &mut cur[dir]);
-                for x in 0..w {
-                    let c = &costs[x * k..(x + 1) * k];
-                    let sum = &mut s_row[x * k..(x + 1) * k];
-                    let xq = x as isize + off * step_x;
-                    let m = match gp {
-                        Some(gp) if xq >= 0 && (xq as usize) < w => {
-                            let xq = xq as usize;
-                            let p2 = self.pen.p2_table[g[x].abs_diff(gp[xq]) as usize];
-                            let shift = match (row_bases, prev_bases) {
-                                (Some(b), Some(pb)) => b[x] as isize - pb[xq] as isize,
-                                _ => 0,
-                            };
-                            let src = view_or_align(before, xq, shift, &mut aligned);
-                            let minprev = before.min[xq];
-                            step::<false>(c, src, minprev, p1, p2, now.window_mut(x), sum)
-                        }
-                        _ => {
-                            let p2 = self.pen.p2_table[0];
-                            step::<false>(c, start, 0, p1, p2, now.window_mut(x), sum)
-                        }
-                    };
-                    now.min[x] = m;
-                    min_row[x] = min_row[x].saturating_add(m);
-                }
+            let inputs = RowInputs {
+                costs,
+                first,
+                g,
+                gp,
+                row_bases,
+                prev_bases,
+                start,
+            };
+            let paths = PathRows {
+                prev: &prev,
+                cur: &mut cur,
+                along: &mut along,
+                aligned: &mut aligned,
+            };
+            if self.diagonals {
+                self.row_paths::<3, K>(&inputs, paths, s_row, min_row);
+            } else {
+                self.row_paths::<1, K>(&inputs, paths, s_row, min_row);
             }
             drop(guard);
             std::mem::swap(&mut prev, &mut cur);
+        }
+    }
+}
+
+/// What a sweep's paths read of the current and the previous row.
+struct RowInputs<'a> {
+    /// The row's costs, `k` per pixel.
+    costs: &'a [u8],
+    /// Whether this sweep is the first here: it writes the row's sums, the second adds to them.
+    first: bool,
+    /// The guide image's row and the previous row (`None` on the sweep's first row).
+    g: &'a [u8],
+    gp: Option<&'a [u8]>,
+    /// The windows' starts in the row and in the previous row, with coarse-to-fine.
+    row_bases: Option<&'a [u16]>,
+    prev_bases: Option<&'a [u16]>,
+    /// Path costs of a path that enters the image (zeros, `FAR` at both ends).
+    start: &'a [u16],
+}
+
+/// The path along the row: the previous pixel's costs and their minimum, and the current
+/// pixel's.
+struct AlongRow {
+    prev: PathRow,
+    cur: PathRow,
+    min: u16,
+}
+
+/// A sweep's path costs while it works on a row: the paths from the previous row (vertical and
+/// diagonals) there and here, the path along the row, and scratch for re-indexing a neighbour.
+struct PathRows<'p> {
+    prev: &'p [PathRow],
+    cur: &'p mut [PathRow],
+    along: &'p mut AlongRow,
+    aligned: &'p mut [u16],
+}
+
+impl Sweep<'_> {
+    /// Every path of one row, pixel by pixel in the sweep's direction: along the row (each pixel
+    /// continues from the one before it), then the first `NDIR` of the vertical path and the
+    /// two diagonals (x − step, x + step), which read only the previous row. Writes or adds
+    /// (`rows.first`) the path costs into `s_row` and their minima into `min_row`.
+    ///
+    /// All paths of a pixel in one loop: its costs, sums and minima are read and written once
+    /// rather than once per direction, and the processor overlaps the row path's chain of
+    /// dependent steps with the other paths' independent ones.
+    #[inline(always)]
+    fn row_paths<const NDIR: usize, const K: usize>(
+        &self,
+        rows: &RowInputs<'_>,
+        paths: PathRows<'_>,
+        s_row: &mut [u16],
+        min_row: &mut [u16],
+    ) {
+        let w = self.cost.width();
+        let k = if K > 0 { K } else { self.k };
+        let step_x: isize = if self.forward { 1 } else { -1 };
+        let p1 = self.pen.p1;
+        let PathRows {
+            prev,
+            cur,
+            along,
+            aligned,
+        } = paths;
+        let (prev, cur) = (&prev[..NDIR], &mut cur[..NDIR]);
+        for xi in 0..w {
+            let x = if self.forward { xi } else { w - 1 - xi };
+            let c = &rows.costs[x * k..(x + 1) * k];
+            let sum = &mut s_row[x * k..(x + 1) * k];
+            let (src, minprev, p2) = if xi == 0 {
+                (rows.start, 0, self.pen.p2_table[0])
+            } else {
+                let xq = (x as isize - step_x) as usize;
+                let shift = rows.row_bases.map_or(0, |b| b[x] as isize - b[xq] as isize);
+                let p2 = self.pen.p2_table[rows.g[x].abs_diff(rows.g[xq]) as usize];
+                let src = view_or_align(&along.prev, 0, shift, aligned);
+                (src, along.min, p2)
+            };
+            let out = along.cur.window_mut(0);
+            let m = if rows.first {
+                step::<true, K>(c, src, minprev, p1, p2, out, sum)
+            } else {
+                step::<false, K>(c, src, minprev, p1, p2, out, sum)
+            };
+            along.min = m;
+            std::mem::swap(&mut along.prev, &mut along.cur);
+            let mut minima = if rows.first {
+                m
+            } else {
+                min_row[x].saturating_add(m)
+            };
+            for (dir, off) in [0isize, -1, 1].into_iter().take(NDIR).enumerate() {
+                let (before, now) = (&prev[dir], &mut cur[dir]);
+                let xq = x as isize + off * step_x;
+                let m = match rows.gp {
+                    Some(gp) if xq >= 0 && (xq as usize) < w => {
+                        let xq = xq as usize;
+                        let p2 = self.pen.p2_table[rows.g[x].abs_diff(gp[xq]) as usize];
+                        let shift = match (rows.row_bases, rows.prev_bases) {
+                            (Some(b), Some(pb)) => b[x] as isize - pb[xq] as isize,
+                            _ => 0,
+                        };
+                        let src = view_or_align(before, xq, shift, aligned);
+                        let minprev = before.min[xq];
+                        step::<false, K>(c, src, minprev, p1, p2, now.window_mut(x), sum)
+                    }
+                    _ => {
+                        let p2 = self.pen.p2_table[0];
+                        step::<false, K>(c, rows.start, 0, p1, p2, now.window_mut(x), sum)
+                    }
+                };
+                now.min[x] = m;
+                minima = minima.saturating_add(m);
+            }
+            min_row[x] = minima;
         }
     }
 }
@@ -387,7 +474,7 @@ fn view_or_align<'b>(
 /// neighbour's costs at the pixel's disparity indices −1..=k (`FAR` where the neighbour has
 /// none); `out` receives the `k` new ones.
 #[inline(always)]
-fn step<const ASSIGN: bool>(
+fn step<const ASSIGN: bool, const K: usize>(
     cost: &[u8],
     prev: &[u16],
     minprev: u16,
@@ -396,8 +483,8 @@ fn step<const ASSIGN: bool>(
     out: &mut [u16],
     sum: &mut [u16],
 ) -> u16 {
-    let k = cost.len();
-    let (prev, out, sum) = (&prev[..k + 2], &mut out[..k], &mut sum[..k]);
+    let k = if K > 0 { K } else { cost.len() };
+    let (cost, prev, out, sum) = (&cost[..k], &prev[..k + 2], &mut out[..k], &mut sum[..k]);
     let jump = minprev.saturating_add(p2);
     // Whole blocks of 16 lanes first (one AVX2 register each), then the rest one by one: a
     // single loop would leave windows shorter than the vectoriser's unrolled width all scalar.
@@ -651,12 +738,13 @@ mod tests {
 
     #[test]
     fn both_sweeps_give_the_plain_recurrence_with_stored_or_recomputed_costs() {
-        // Fewer disparities than a 16-lane block (one by one), whole blocks, and whole blocks
-        // with a last block overlapping the one before by 11, 1 and 15 lanes.
+        // Fewer disparities than a 16-lane block (one by one), whole blocks (16 and 32 also as
+        // the sweeps compiled at those lengths), and whole blocks with a last block overlapping
+        // the one before by 11, 1 and 15 lanes.
         let (w, h) = (23, 9);
         let noise = FnCost { w, h, at: noise };
         let guide = Raster::from_fn(w, h, |x, y| ((x * 29 + y * 13) % 17 * 15) as u8);
-        for k in [7, 16, 21, 31, 33] {
+        for k in [7, 16, 21, 31, 32, 33] {
             for paths in [4, 8] {
                 let pen = Penalties::new(10, 100, 16.0, paths);
                 assert_matches_reference(&noise, &guide, None, k, paths, &pen);
