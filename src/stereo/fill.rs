@@ -30,8 +30,16 @@ const OCCLUSION_STEP: f32 = 2.0;
 /// pixels filled. An image without a single estimate becomes 0 everywhere.
 pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
     let (w, h) = (disparity.width(), disparity.height());
-    let holes: Vec<usize> = (0..w * h)
-        .filter(|&p| disparity.pixels()[p].is_nan())
+    let holes: Vec<usize> = disparity
+        .pixels()
+        .par_chunks(w)
+        .enumerate()
+        .flat_map_iter(|(y, row)| {
+            row.iter()
+                .enumerate()
+                .filter(|(_, v)| v.is_nan())
+                .map(move |(x, _)| y * w + x)
+        })
         .collect();
     if holes.is_empty() {
         return 0;
@@ -53,14 +61,8 @@ pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
         .zip(looking_up.par_iter().zip(&looking_down))
         .map(|(&p, (up, down))| {
             let c = [up[0], up[1], up[2], up[3], up[4], down[0], down[1], down[2]];
-            let mut buf = [0f32; 8];
-            let mut len = 0;
-            for &x in c.iter().filter(|v| !v.is_nan()) {
-                buf[len] = x;
-                len += 1;
-            }
-            let v = &mut buf[..len];
-            v.sort_by(f32::total_cmp);
+            let (sorted, len) = sort8(c);
+            let v = &sorted[..len];
             // An occlusion lies beside a nearer object on its row: the smaller of the two row
             // neighbours is the background. A mismatch between row neighbours at different depths
             // is treated the same way (holes at depth steps are mostly occlusions the L/R check
@@ -94,6 +96,41 @@ pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
         }
     }
     holes.len()
+}
+
+/// The values of `c` that are not NaN in ascending order, then infinities, and how many are not
+/// NaN: Knuth's sorting network for eight values (19 comparators in 6 layers, TAOCP vol. 3,
+/// §5.3.4) rather than a general sort per hole, whose branches took most of the filling's time.
+fn sort8(c: [f32; 8]) -> ([f32; 8], usize) {
+    let len = c.iter().filter(|v| !v.is_nan()).count();
+    let mut v = c.map(|x| if x.is_nan() { f32::INFINITY } else { x });
+    // No NaN is left, so a plain comparison orders each pair (`f32::min` would test for NaN).
+    let mut order = |i: usize, j: usize| {
+        let (a, b) = (v[i], v[j]);
+        let swap = b < a;
+        v[i] = if swap { b } else { a };
+        v[j] = if swap { a } else { b };
+    };
+    order(0, 2);
+    order(1, 3);
+    order(4, 6);
+    order(5, 7);
+    order(0, 4);
+    order(1, 5);
+    order(2, 6);
+    order(3, 7);
+    order(0, 1);
+    order(2, 3);
+    order(4, 5);
+    order(6, 7);
+    order(2, 4);
+    order(3, 5);
+    order(1, 4);
+    order(3, 6);
+    order(1, 2);
+    order(3, 4);
+    order(5, 6);
+    (v, len)
 }
 
 /// Which way a hole looks for its nearest valid values in [`sweep_rows`].
@@ -186,92 +223,110 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
     mag.par_chunks_mut(w)
         .zip(dir.par_chunks_mut(w))
         .enumerate()
-        .for_each(|(y, (mag, dir))| {
-            // The three rows as f32 with one replicated pixel on each side (borders replicate),
-            // so the Sobel loop below is plain indexing and vectorises.
-            let padded = |yy: usize| {
-                let row = image.row(yy);
-                let mut out = Vec::with_capacity(w + 2);
-                out.push(row[0] as f32);
-                out.extend(row.iter().map(|&v| v as f32));
-                out.push(row[w - 1] as f32);
-                out
-            };
-            let (up, mid, down) = (
-                padded(y.saturating_sub(1)),
-                padded(y),
-                padded((y + 1).min(h - 1)),
-            );
-            for x in 0..w {
-                // Column x of the image is index x + 1 of a padded row.
-                let gx =
-                    (up[x + 2] + 2.0 * mid[x + 2] + down[x + 2]) - (up[x] + 2.0 * mid[x] + down[x]);
-                let gy = (down[x] + 2.0 * down[x + 1] + down[x + 2])
-                    - (up[x] + 2.0 * up[x + 1] + up[x + 2]);
-                mag[x] = (gx * gx + gy * gy).sqrt() / 4.0;
-                // Quantise the gradient direction to 0°, 45°, 90°, 135° (tan 22.5° ≈ 0.4142).
-                let (ax, ay) = (gx.abs(), gy.abs());
-                dir[x] = if ay <= 0.4142 * ax {
-                    0
-                } else if ax <= 0.4142 * ay {
-                    2
-                } else if (gx > 0.0) == (gy > 0.0) {
-                    1
-                } else {
-                    3
+        .for_each_init(
+            || [vec![0f32; w + 2], vec![0f32; w + 2], vec![0f32; w + 2]],
+            |[up, mid, down], (y, (mag, dir))| {
+                // The three rows as f32 with one replicated pixel on each side (borders
+                // replicate), read through slices of length w at each column offset so that the
+                // Sobel loop has no bounds checks and vectorises.
+                let pad = |out: &mut [f32], yy: usize| {
+                    let row = image.row(yy);
+                    out[0] = row[0] as f32;
+                    for (o, &v) in out[1..=w].iter_mut().zip(row) {
+                        *o = v as f32;
+                    }
+                    out[w + 1] = row[w - 1] as f32;
                 };
-            }
-        });
-    let m = |x: isize, y: isize| {
-        if x < 0 || y < 0 || x >= w as isize || y >= h as isize {
-            0.0
-        } else {
-            mag[y as usize * w + x as usize]
-        }
-    };
+                pad(up, y.saturating_sub(1));
+                pad(mid, y);
+                pad(down, (y + 1).min(h - 1));
+                let (up_left, up_centre, up_right) = (&up[..w], &up[1..=w], &up[2..w + 2]);
+                let (left, right) = (&mid[..w], &mid[2..w + 2]);
+                let (down_left, down_centre, down_right) =
+                    (&down[..w], &down[1..=w], &down[2..w + 2]);
+                let (mag, dir) = (&mut mag[..w], &mut dir[..w]);
+                for x in 0..w {
+                    let gx = (up_right[x] + 2.0 * right[x] + down_right[x])
+                        - (up_left[x] + 2.0 * left[x] + down_left[x]);
+                    let gy = (down_left[x] + 2.0 * down_centre[x] + down_right[x])
+                        - (up_left[x] + 2.0 * up_centre[x] + up_right[x]);
+                    mag[x] = (gx * gx + gy * gy).sqrt() / 4.0;
+                    // Quantise the gradient direction to 0°, 45°, 90°, 135° (tan 22.5° ≈
+                    // 0.4142): 0 when nearly horizontal, else 2 when nearly vertical, else 1 or 3
+                    // by the diagonal, as arithmetic rather than branches.
+                    let (ax, ay) = (gx.abs(), gy.abs());
+                    let along_x = (ay <= 0.4142 * ax) as u8;
+                    let along_y = (ax <= 0.4142 * ay) as u8;
+                    let rising = ((gx > 0.0) == (gy > 0.0)) as u8;
+                    dir[x] = (1 - along_x) * (2 * along_y + (1 - along_y) * (3 - 2 * rising));
+                }
+            },
+        );
+    // Non-maximum suppression: each pixel against its two neighbours along the gradient, read
+    // from three rows padded with a zero on each side (outside the image counts as 0). All four
+    // directions' neighbours are read and one pair picked without a branch: the direction is as
+    // good as random from pixel to pixel, and a branch on it cost more than the comparisons.
+    let zeros = vec![0f32; w];
     let mut strong = vec![0u8; w * h]; // 0 none, 1 weak, 2 strong
-    strong
-        .par_chunks_mut(w)
-        .enumerate()
-        .for_each(|(y, strong)| {
-            let y = y as isize;
-            for x in 0..w as isize {
-                let p = y as usize * w + x as usize;
-                let (dx, dy) = match dir[p] {
-                    0 => (1, 0),
-                    1 => (1, 1),
-                    2 => (0, 1),
-                    _ => (-1, 1),
+    strong.par_chunks_mut(w).enumerate().for_each_init(
+        || [vec![0f32; w + 2], vec![0f32; w + 2], vec![0f32; w + 2]],
+        |[up, mid, down], (y, strong)| {
+            let row = |yy: Option<usize>| {
+                yy.filter(|&yy| yy < h)
+                    .map_or(&zeros[..], |yy| &mag[yy * w..(yy + 1) * w])
+            };
+            up[1..=w].copy_from_slice(row(y.checked_sub(1)));
+            mid[1..=w].copy_from_slice(row(Some(y)));
+            down[1..=w].copy_from_slice(row(Some(y + 1)));
+            let dirs = &dir[y * w..(y + 1) * w];
+            // Padded column x + 1 is image column x: each slice below starts at the offset of
+            // one neighbour and is `w` long, so the loop indexes them without bounds checks.
+            let (left, centre, right) = (&mid[..w], &mid[1..=w], &mid[2..w + 2]);
+            let (up_left, up_centre, up_right) = (&up[..w], &up[1..=w], &up[2..w + 2]);
+            let (down_left, down_centre, down_right) = (&down[..w], &down[1..=w], &down[2..w + 2]);
+            let strong = &mut strong[..w];
+            for x in 0..w {
+                // The neighbours ahead and behind along directions 0 (x), 1 (diagonal ↘), 2 (y)
+                // and 3 (diagonal ↙). Exactly one of the four terms is not 0 (magnitudes are
+                // finite): a select the compiler vectorises.
+                let d = dirs[x];
+                let one = |k: u8| (d == k) as u8 as f32;
+                let pick = |along_x: f32, diagonal: f32, along_y: f32, anti_diagonal: f32| {
+                    along_x * one(0) + diagonal * one(1) + along_y * one(2) + anti_diagonal * one(3)
                 };
-                let v = mag[p];
-                if v >= m(x + dx, y + dy) && v >= m(x - dx, y - dy) && v >= low {
-                    strong[x as usize] = if v >= high { 2 } else { 1 };
-                }
+                let ahead = pick(right[x], down_right[x], down_centre[x], down_left[x]);
+                let behind = pick(left[x], up_left[x], up_centre[x], up_right[x]);
+                let v = centre[x];
+                let kept = (v >= ahead) & (v >= behind) & (v >= low);
+                strong[x] = kept as u8 * (1 + (v >= high) as u8);
             }
-        });
-    // Hysteresis: weak edges connected to strong ones survive.
-    let mut edge = vec![false; w * h];
-    let mut stack: Vec<usize> = (0..w * h).filter(|&p| strong[p] == 2).collect();
-    for &p in &stack {
-        edge[p] = true;
-    }
+        },
+    );
+    // Hysteresis: weak edges connected to strong ones survive; a weak pixel reached becomes
+    // strong, so `strong` also marks what has been taken.
+    let mut stack: Vec<usize> = strong
+        .par_chunks(w)
+        .enumerate()
+        .flat_map_iter(|(y, row)| {
+            row.iter()
+                .enumerate()
+                .filter(|&(_, &s)| s == 2)
+                .map(move |(x, _)| y * w + x)
+        })
+        .collect();
     while let Some(p) = stack.pop() {
-        let (x, y) = ((p % w) as isize, (p / w) as isize);
-        for dy in -1..=1 {
-            for dx in -1..=1 {
-                let (qx, qy) = (x + dx, y + dy);
-                if qx < 0 || qy < 0 || qx >= w as isize || qy >= h as isize {
-                    continue;
-                }
-                let q = qy as usize * w + qx as usize;
-                if !edge[q] && strong[q] == 1 {
-                    edge[q] = true;
+        let (x, y) = (p % w, p / w);
+        for qy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+            for qx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                let q = qy * w + qx;
+                if strong[q] == 1 {
+                    strong[q] = 2;
                     stack.push(q);
                 }
             }
         }
     }
-    edge
+    strong.par_iter().map(|&s| s == 2).collect()
 }
 
 /// Settings of [`smooth`].
@@ -428,6 +483,32 @@ fn add_tap(tap: &Tap<'_>, sum: &mut [f32], weight: &mut [f32]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_sorting_network_sorts_every_input() {
+        // Zero–one principle: a comparator network that sorts every sequence of zeros and ones
+        // sorts every sequence.
+        for bits in 0u32..256 {
+            let c: [f32; 8] = std::array::from_fn(|i| (bits >> i & 1) as f32);
+            let (v, len) = sort8(c);
+            assert_eq!(len, 8);
+            assert!(v.windows(2).all(|p| p[0] <= p[1]), "{c:?} gave {v:?}");
+        }
+        // With holes (NaN): the values first, ascending, as a general sort gives them.
+        use crate::mesh::surfaces::XorShift;
+        let mut rng = XorShift(0x5017);
+        for _ in 0..2000 {
+            let c: [f32; 8] = std::array::from_fn(|_| match rng.below(10) {
+                0..=2 => f32::NAN,
+                r => r as f32,
+            });
+            let mut plain: Vec<f32> = c.iter().copied().filter(|v| !v.is_nan()).collect();
+            plain.sort_by(f32::total_cmp);
+            let (v, len) = sort8(c);
+            assert_eq!(&v[..len], &plain[..], "{c:?}");
+            assert!(v[len..].iter().all(|&x| x == f32::INFINITY));
+        }
+    }
 
     #[test]
     fn occlusions_take_the_background_and_mismatches_the_median() {

@@ -209,7 +209,7 @@ pub(crate) fn match_grey(
     let wants_alignment = half_size_match && o.refine_alignment;
     let (bases, k, r, coarse) = if use_coarse || wants_alignment {
         let start = Instant::now();
-        let (cl, cr) = (pyramid::reduce(l), pyramid::reduce(r));
+        let (cl, cr) = rayon::join(|| pyramid::reduce(l), || pyramid::reduce(r));
         // The coarse level only centres each pixel's window, and the window's margin absorbs
         // its errors: 4 paths and no uniqueness or speckle checks measured as accurate as the
         // whole pipeline there (docs/stereo-eval.md). The L/R check stays, so that occlusions
@@ -376,7 +376,7 @@ pub(crate) fn match_grey(
     let holes = decision
         .disparity
         .pixels()
-        .iter()
+        .par_iter()
         .filter(|v| v.is_nan())
         .count();
     stats.invalid_fraction = holes as f32 / n as f32;
@@ -385,11 +385,15 @@ pub(crate) fn match_grey(
         state,
         mut confidence,
     } = decision;
-    for (c, d) in confidence.pixels_mut().iter_mut().zip(disparity.pixels()) {
-        if d.is_nan() {
-            *c = 0.0;
-        }
-    }
+    confidence
+        .pixels_mut()
+        .par_iter_mut()
+        .zip(disparity.pixels().par_iter())
+        .for_each(|(c, d)| {
+            if d.is_nan() {
+                *c = 0.0;
+            }
+        });
     if o.fill {
         stats.time("stereo.fill", || fill::fill_holes(&mut disparity, &state));
         if o.smoothing_passes > 0 {
@@ -406,11 +410,11 @@ pub(crate) fn match_grey(
     }
     // Sub-pixel and smoothing stay within the searched range; clamp against rounding anyway.
     let top = o.max_disparity as f32;
-    for d in disparity.pixels_mut() {
+    disparity.pixels_mut().par_iter_mut().for_each(|d| {
         if !d.is_nan() {
             *d = d.clamp(0.0, top);
         }
-    }
+    });
     Ok((disparity, confidence))
 }
 

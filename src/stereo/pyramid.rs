@@ -6,31 +6,42 @@ use rayon::prelude::*;
 
 use crate::image::Raster;
 
-/// Gaussian reduce: 5-tap binomial filter `[1 4 6 4 1]/16` in x and y, then every second pixel.
+/// Gaussian reduce: 5-tap binomial filter `[1 4 6 4 1]/16` in x and y (borders replicated), then
+/// every second pixel.
 pub fn reduce(image: &Raster<u8>) -> Raster<u8> {
     let (w, h) = (image.width(), image.height());
     let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
-    let taps = [1u32, 4, 6, 4, 1];
-    let clamp = |v: isize, n: usize| v.clamp(0, n as isize - 1) as usize;
-    // Horizontal pass on every row, at the coarse columns only.
-    let mut tmp = vec![0u32; cw * h];
-    tmp.par_chunks_mut(cw).enumerate().for_each(|(y, out)| {
-        let row = image.row(y);
-        for (cx, o) in out.iter_mut().enumerate() {
-            let x = 2 * cx as isize;
-            *o = (0..5)
-                .map(|i| taps[i] * row[clamp(x + i as isize - 2, w)] as u32)
-                .sum();
-        }
-    });
+    // Horizontal pass on every row, at the coarse columns only. Sums fit `u16` (at most
+    // 16 · 255 here and 256 · 255 + 128 after the vertical pass), so both passes are plain loops
+    // over whole rows the compiler vectorises: the row is split into its even and odd pixels,
+    // replicated two pixels past each end, and coarse column `cx` is
+    // `even[cx] + 4·odd[cx] + 6·even[cx+1] + 4·odd[cx+1] + even[cx+2]` (padded indices).
+    let mut tmp = vec![0u16; cw * h];
+    tmp.par_chunks_mut(cw).enumerate().for_each_init(
+        || (vec![0u16; cw + 2], vec![0u16; cw + 2]),
+        |(even, odd), (y, out)| {
+            let row = image.row(y);
+            // Padded pixel i is image pixel clamp(i − 2): even[j] = pixel 2j − 2, odd[j] = 2j − 1.
+            let at = |i: usize| row[i.saturating_sub(2).min(w - 1)] as u16;
+            for (j, (e, o)) in even.iter_mut().zip(odd.iter_mut()).enumerate() {
+                *e = at(2 * j);
+                *o = at(2 * j + 1);
+            }
+            for (cx, o) in out.iter_mut().enumerate() {
+                *o = even[cx] + 4 * odd[cx] + 6 * even[cx + 1] + 4 * odd[cx + 1] + even[cx + 2];
+            }
+        },
+    );
     let mut out = vec![0u8; cw * ch];
     out.par_chunks_mut(cw).enumerate().for_each(|(cy, row)| {
-        let y = 2 * cy as isize;
-        for (cx, o) in row.iter_mut().enumerate() {
-            let s: u32 = (0..5)
-                .map(|j| taps[j] * tmp[clamp(y + j as isize - 2, h) * cw + cx])
-                .sum();
-            *o = ((s + 128) / 256) as u8;
+        let source = |j: usize| {
+            let y = (2 * cy + j).saturating_sub(2).min(h - 1);
+            &tmp[y * cw..(y + 1) * cw]
+        };
+        let (a, b, c, d, e) = (source(0), source(1), source(2), source(3), source(4));
+        for (i, o) in row.iter_mut().enumerate() {
+            let s = a[i] + 4 * b[i] + 6 * c[i] + 4 * d[i] + e[i];
+            *o = ((s as u32 + 128) >> 8) as u8;
         }
     });
     Raster::from_vec(cw, ch, out)
@@ -39,6 +50,7 @@ pub fn reduce(image: &Raster<u8>) -> Raster<u8> {
 /// Per-pixel window starts for a `width × height` level from the coarse level's dense disparity:
 /// each window of `k` disparities (clamped to `0..=max_disparity`) covers the disparities of the
 /// 3×3 coarse neighbourhood when they fit in it, else centres on the pixel's own coarse value.
+/// `coarse` must be the half-size level of `width × height` (`width.div_ceil(2)` wide).
 pub fn window_bases(
     coarse: &Raster<f32>,
     width: usize,
@@ -47,25 +59,47 @@ pub fn window_bases(
     max_disparity: usize,
 ) -> Vec<u16> {
     let (cw, ch) = (coarse.width(), coarse.height());
+    debug_assert_eq!((cw, ch), (width.div_ceil(2), height.div_ceil(2)));
     let top = (max_disparity + 1).saturating_sub(k);
+    // The 3×3 neighbourhood's extremes as the extremes over three rows of each row's extremes
+    // over three columns, each a plain pass over a row (`f32::min`/`max` skip NaN, so the order
+    // does not matter).
+    let across = |row: &[f32], pick: fn(f32, f32) -> f32| -> Vec<f32> {
+        let mut out = row.to_vec();
+        for (o, pair) in out[1..].iter_mut().zip(row.windows(2)) {
+            *o = pick(pick(*o, pair[0]), pair[1]);
+        }
+        for (o, &right) in out.iter_mut().zip(&row[1..]) {
+            *o = pick(*o, right);
+        }
+        out
+    };
+    let (row_lo, row_hi): (Vec<Vec<f32>>, Vec<Vec<f32>>) = (0..ch)
+        .into_par_iter()
+        .map(|cy| {
+            (
+                across(coarse.row(cy), f32::min),
+                across(coarse.row(cy), f32::max),
+            )
+        })
+        .unzip();
     // Each coarse pixel's window start, once (four full-size pixels share it).
     let mut coarse_bases = vec![0u16; cw * ch];
     coarse_bases
         .par_chunks_mut(cw)
         .enumerate()
         .for_each(|(cy, row)| {
-            let rows: Vec<&[f32]> = (cy.saturating_sub(1)..=(cy + 1).min(ch - 1))
-                .map(|qy| coarse.row(qy))
-                .collect();
-            for (cx, b) in row.iter_mut().enumerate() {
-                let own = 2.0 * coarse.row(cy)[cx];
-                let (mut lo, mut hi) = (own, own);
-                for r in &rows {
-                    for &v in &r[cx.saturating_sub(1)..=(cx + 1).min(cw - 1)] {
-                        lo = lo.min(2.0 * v);
-                        hi = hi.max(2.0 * v);
-                    }
-                }
+            let (up, down) = (cy.saturating_sub(1), (cy + 1).min(ch - 1));
+            let lo = row_lo[up].iter().zip(&row_lo[cy]).zip(&row_lo[down]);
+            let hi = row_hi[up].iter().zip(&row_hi[cy]).zip(&row_hi[down]);
+            for (((b, &own), ((&l0, &l1), &l2)), ((&h0, &h1), &h2)) in
+                row.iter_mut().zip(coarse.row(cy)).zip(lo).zip(hi)
+            {
+                let (own, lo, hi) = (
+                    2.0 * own,
+                    2.0 * l0.min(l1).min(l2),
+                    2.0 * h0.max(h1).max(h2),
+                );
                 let centre = if hi - lo + 4.0 <= k as f32 {
                     0.5 * (lo + hi)
                 } else {
@@ -86,7 +120,7 @@ pub fn window_bases(
         .for_each(|(y, row)| {
             let src = &coarse_bases[(y / 2).min(ch - 1) * cw..][..cw];
             for (x, b) in row.iter_mut().enumerate() {
-                *b = src[(x / 2).min(cw - 1)];
+                *b = src[x / 2];
             }
         });
     bases
