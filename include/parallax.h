@@ -100,11 +100,11 @@ enum plx_stereo_preset
  {
   // Census 5×5, 4-path SGM after a half-resolution pass, light smoothing; fastest.
   PLX_STEREO_PRESET_FAST = 0,
-  // Census 9×7, 8-path SGM after a half-resolution pass that also measures and undoes the
-  // pair's residual vertical misalignment; consistency checks, fill and edge-aware smoothing
-  // (default).
+  // Census 7×7, 4-path SGM after a half-resolution pass that also measures and undoes the
+  // pair's residual vertical misalignment; consistency checks, fill and edge-aware smoothing.
   PLX_STEREO_PRESET_BALANCED = 1,
-  // As balanced, but the full range searched at full size.
+  // Census 9×7, 8-path SGM with a wider window after the half-resolution pass and a local fit
+  // on the grey levels: about 1.6× balanced's time, more precise below a pixel (default).
   PLX_STEREO_PRESET_QUALITY = 2,
 };
 #ifndef __cplusplus
@@ -496,7 +496,8 @@ typedef struct plx_calibration {
 typedef struct plx_stereo_options {
   // `sizeof(plx_stereo_options)` as the caller compiled it.
   size_t size;
-  // A `plx_stereo_preset` value (default `PLX_STEREO_PRESET_BALANCED`).
+  // A `plx_stereo_preset` value (default `PLX_STEREO_PRESET_QUALITY`, what a scene matches
+  // with when no options are set: its mesh, planes and placements need that precision).
   uint32_t preset;
   // Largest disparity searched, pixels; 0 = from the calibration (`max_disparity`), else a
   // quarter of the image width. Must be less than the image width.

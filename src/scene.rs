@@ -126,10 +126,19 @@ pub struct LoadedPair {
 }
 
 /// Stereo options as the host set them; `max_disparity: None` = choose automatically.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 struct StereoSettings {
     options: StereoOptions,
     max_disparity: Option<u32>,
+}
+
+impl Default for StereoSettings {
+    fn default() -> Self {
+        StereoSettings {
+            options: Scene::default_stereo_options(),
+            max_disparity: None,
+        }
+    }
 }
 
 #[cfg(feature = "gltf")]
@@ -308,10 +317,19 @@ impl Scene {
         self.calibration.value.as_ref()
     }
 
+    /// The stereo options a scene matches with unless the host sets its own: the `quality`
+    /// preset, not the matcher's default `balanced`. The scene's mesh normals, planes and
+    /// placements need `quality`'s sub-pixel precision on noisy photographs (on the built-in
+    /// 16-spp renders, `balanced` moved `room`'s floor placement from +0.65 % to +5.4 % of the
+    /// distance and lost `clutter`'s floor plane; docs/stereo-eval.md, stop 39).
+    pub fn default_stereo_options() -> StereoOptions {
+        StereoOptions::preset(stereo::Preset::Quality)
+    }
+
     /// Sets the stereo matcher's options, `max_disparity` included (it is checked against the
-    /// image width when matching). Without this call the scene uses the `balanced` preset with
-    /// `max_disparity` from the calibration (`ndisp`) when it has one, else
-    /// [`auto_max_disparity`] of the width.
+    /// image width when matching). Without this call the scene uses
+    /// [`Scene::default_stereo_options`] with `max_disparity` from the calibration (`ndisp`) when
+    /// it has one, else [`auto_max_disparity`] of the width.
     ///
     /// # Errors
     /// `InvalidArgument` for an option out of range; the scene is unchanged.
@@ -627,7 +645,7 @@ mod tests {
         scene
             .set_stereo_options(StereoOptions {
                 max_disparity: 16,
-                ..StereoOptions::default()
+                ..Scene::default_stereo_options()
             })
             .unwrap();
         let disparity = scene.disparity().unwrap();
@@ -687,7 +705,7 @@ mod tests {
         scene
             .set_stereo_options(StereoOptions {
                 max_disparity: 12,
-                ..StereoOptions::default()
+                ..Scene::default_stereo_options()
             })
             .unwrap();
         assert_eq!(scene.effective_stereo_options().max_disparity, 12);
@@ -695,7 +713,7 @@ mod tests {
         scene
             .set_stereo_options(StereoOptions {
                 max_disparity: 200,
-                ..StereoOptions::default()
+                ..Scene::default_stereo_options()
             })
             .unwrap();
         let err = scene.disparity().unwrap_err();

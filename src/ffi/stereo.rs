@@ -14,11 +14,11 @@ use crate::stereo::{Aggregation, CostKind, Preset, StereoOptions};
 pub enum plx_stereo_preset {
     /// Census 5×5, 4-path SGM after a half-resolution pass, light smoothing; fastest.
     Fast = 0,
-    /// Census 9×7, 8-path SGM after a half-resolution pass that also measures and undoes the
-    /// pair's residual vertical misalignment; consistency checks, fill and edge-aware smoothing
-    /// (default).
+    /// Census 7×7, 4-path SGM after a half-resolution pass that also measures and undoes the
+    /// pair's residual vertical misalignment; consistency checks, fill and edge-aware smoothing.
     Balanced = 1,
-    /// As balanced, but the full range searched at full size.
+    /// Census 9×7, 8-path SGM with a wider window after the half-resolution pass and a local fit
+    /// on the grey levels: about 1.6× balanced's time, more precise below a pixel (default).
     Quality = 2,
 }
 
@@ -42,7 +42,8 @@ pub enum plx_stereo_method {
 pub struct plx_stereo_options {
     /// `sizeof(plx_stereo_options)` as the caller compiled it.
     pub size: usize,
-    /// A `plx_stereo_preset` value (default `PLX_STEREO_PRESET_BALANCED`).
+    /// A `plx_stereo_preset` value (default `PLX_STEREO_PRESET_QUALITY`, what a scene matches
+    /// with when no options are set: its mesh, planes and placements need that precision).
     pub preset: u32,
     /// Largest disparity searched, pixels; 0 = from the calibration (`max_disparity`), else a
     /// quarter of the image width. Must be less than the image width.
@@ -67,7 +68,7 @@ pub unsafe extern "C" fn plx_stereo_options_init(options: *mut plx_stereo_option
         }
         *options = plx_stereo_options {
             size: size_of::<plx_stereo_options>(),
-            preset: plx_stereo_preset::Balanced as u32,
+            preset: plx_stereo_preset::Quality as u32,
             max_disparity: 0,
             method: plx_stereo_method::PresetDefault as u32,
             fill: 1,
@@ -92,7 +93,7 @@ unsafe fn read_options(
             "options.size is {size}: set it with plx_stereo_options_init"
         )));
     }
-    let preset = match field(offset_of!(plx_stereo_options, preset)).unwrap_or(1) {
+    let preset = match field(offset_of!(plx_stereo_options, preset)).unwrap_or(2) {
         0 => Preset::Fast,
         1 => Preset::Balanced,
         2 => Preset::Quality,

@@ -335,7 +335,7 @@ mod tests {
         s.set_stereo_pair(&l.view(), &r.view()).unwrap();
         s.set_stereo_options(StereoOptions {
             max_disparity: 16,
-            ..StereoOptions::default()
+            ..Scene::default_stereo_options()
         })
         .unwrap();
         s

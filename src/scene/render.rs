@@ -150,7 +150,7 @@ mod tests {
         s.set_stereo_pair(&l.view(), &r.view()).unwrap();
         s.set_stereo_options(StereoOptions {
             max_disparity: 16,
-            ..StereoOptions::default()
+            ..Scene::default_stereo_options()
         })
         .unwrap();
         s.set_calibration(StereoCalibration::from_focal_baseline(60.0, 0.1, 96, 48).unwrap())

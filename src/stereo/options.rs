@@ -45,16 +45,19 @@ pub enum Subpixel {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Preset {
-    /// Census 5×5, 4-path SGM; a half-size pass narrows each pixel's search to 16 disparities;
-    /// residual misalignment undone as in `Balanced`; no local fit, one smoothing pass.
+    /// As `Balanced` with census 5×5 and one smoothing pass.
     Fast,
-    /// Census 9×7, 8-path SGM; a half-size pass narrows each pixel's search to 32 disparities
+    /// Census 7×7, 4-path SGM; a half-size pass narrows each pixel's search to 16 disparities
     /// and measures the pair's residual vertical misalignment, undone before the full-size
-    /// match; equiangular sub-pixel, 5×5 local fit, L/R check, uniqueness 5 %, speckles
-    /// < 100 px, background fill, 3 passes of edge-aware smoothing. The default.
+    /// match; equiangular sub-pixel, L/R check, uniqueness 5 %, speckles < 100 px, background
+    /// fill, 3 passes of edge-aware smoothing. The default of the matcher on its own, chosen for
+    /// its run time: on Middlebury, `Quality`'s 8 paths, wider windows and local fit buy half a
+    /// point of bad 0.5 px for about 1.6× the time (docs/stereo-eval.md, stop 39).
     Balanced,
-    /// As `Balanced` but searching the full range at full size (the half-size pass only measures
-    /// the misalignment).
+    /// Census 9×7, 8-path SGM, a window of 32 disparities after the half-size pass, 5×5 local
+    /// fit on the grey levels; otherwise as `Balanced`. What [`crate::scene::Scene`] matches
+    /// with: on noisy photographs its sub-pixel precision is what keeps planes and placements
+    /// right (docs/stereo-eval.md, stop 39).
     Quality,
 }
 
@@ -166,15 +169,15 @@ impl StereoOptions {
         let balanced = StereoOptions {
             max_disparity: 64,
             cost: CostKind::Census,
-            census_radius: (4, 3),
+            census_radius: (3, 3),
             sad_radius: 4,
-            aggregation: Aggregation::Sgm8,
+            aggregation: Aggregation::Sgm4,
             p1: 24,
             p2: 320,
             p2_gradient_scale: 16.0,
             dp_penalty: 4.0,
             subpixel: Subpixel::Equiangular,
-            local_refinement_radius: 2,
+            local_refinement_radius: 0,
             lr_max_diff: Some(1),
             uniqueness: 5,
             speckle_size: 100,
@@ -182,7 +185,7 @@ impl StereoOptions {
             fill: true,
             smoothing_passes: 3,
             coarse_levels: 1,
-            coarse_window: 32,
+            coarse_window: 16,
             correct_misalignment: false,
             refine_alignment: true,
             noise_adaptive_penalties: false,
@@ -191,14 +194,14 @@ impl StereoOptions {
             Preset::Balanced => balanced,
             Preset::Fast => StereoOptions {
                 census_radius: (2, 2),
-                aggregation: Aggregation::Sgm4,
-                coarse_window: 16,
-                local_refinement_radius: 0,
                 smoothing_passes: 1,
                 ..balanced
             },
             Preset::Quality => StereoOptions {
-                coarse_levels: 0,
+                census_radius: (4, 3),
+                aggregation: Aggregation::Sgm8,
+                local_refinement_radius: 2,
+                coarse_window: 32,
                 ..balanced
             },
         }

@@ -220,16 +220,21 @@ fn fronto_parallel_plane_has_sub_pixel_accuracy() {
     for truth in [7.0f32, 7.25, 7.5, 9.8] {
         let l = gray(w, h, |x, y| texture(x as f32, y as f32));
         let r = gray(w, h, |x, y| texture(x as f32 + truth, y as f32));
-        for o in [
-            opts(24),
-            StereoOptions {
-                max_disparity: 24,
-                ..StereoOptions::preset(Preset::Quality)
-            },
+        // Without the local fit (`balanced`), sub-pixel positions come from the census costs
+        // alone, which lean towards whole pixels by about a tenth of a pixel.
+        for (o, limit) in [
+            (opts(24), 0.15),
+            (
+                StereoOptions {
+                    max_disparity: 24,
+                    ..StereoOptions::preset(Preset::Quality)
+                },
+                0.1,
+            ),
         ] {
             let d = run(&l, &r, &o);
             let e = mean_error(&d.disparity, 30, |_, _| truth);
-            assert!(e < 0.1, "disparity {truth}: mean error {e}");
+            assert!(e < limit, "disparity {truth}: mean error {e}");
         }
     }
 }
@@ -298,7 +303,12 @@ fn a_step_edge_stays_sharp() {
         // spread: within 2 px of it everywhere but in a few rows, and always within 10 px.
         assert_eq!(beyond(10), 0, "{preset}: {bad:?}");
         let share = beyond(2) as f32 / evaluated;
-        let limit = if preset == Preset::Fast { 0.05 } else { 0.005 };
+        // 4 paths and no local fit (`fast`, `balanced`) let the edge wander a little more.
+        let limit = match preset {
+            Preset::Fast => 0.05,
+            Preset::Balanced => 0.01,
+            Preset::Quality => 0.005,
+        };
         assert!(
             share <= limit,
             "{preset}: {:.2} % wrong beyond 2 px: {bad:?}",
@@ -347,11 +357,24 @@ fn thesis_method_finds_the_plane() {
 fn coarse_to_fine_matches_the_full_search() {
     let (w, h) = (160, 64);
     let (l, r, truth) = step_pair(w, h);
-    let full = run(&l, &r, &opts(40));
+    // The same matcher with and without the narrowed search (`quality`'s, whose edges
+    // `a_step_edge_stays_sharp` holds to the tightest limit).
+    let base = StereoOptions {
+        max_disparity: 40,
+        ..StereoOptions::preset(Preset::Quality)
+    };
+    let full = run(
+        &l,
+        &r,
+        &StereoOptions {
+            coarse_levels: 0,
+            ..base.clone()
+        },
+    );
     let o = StereoOptions {
         coarse_levels: 1,
         coarse_window: 12,
-        ..opts(40)
+        ..base
     };
     let c2f = run(&l, &r, &o);
     assert!(c2f.stats.timings.iter().any(|(n, _)| n == "stereo.coarse"));
@@ -425,13 +448,18 @@ fn a_residual_vertical_offset_is_measured_and_undone() {
         let x = (x as f32 + 8.0) / (1.0 - 4.0 / w as f32);
         texture(x, y as f32 - dy(y as f32))
     });
-    let with = run(&l, &r, &opts(24));
+    // `quality`'s local fit resolves what the correction restores below a pixel.
+    let o = StereoOptions {
+        max_disparity: 24,
+        ..StereoOptions::preset(Preset::Quality)
+    };
+    let with = run(&l, &r, &o);
     let without = run(
         &l,
         &r,
         &StereoOptions {
             refine_alignment: false,
-            ..opts(24)
+            ..o.clone()
         },
     );
     let m = with

@@ -28,7 +28,7 @@ pub struct DepthInput {
     /// Right view of the pair (same size as --left).
     #[arg(long, value_name = "IMAGE", requires = "left")]
     pub right: Option<PathBuf>,
-    /// Stereo preset with --left/--right: fast, balanced (default) or quality.
+    /// Stereo preset with --left/--right: fast, balanced or quality (default: quality, the scene's).
     #[arg(long, value_name = "P", requires = "left")]
     pub preset: Option<Preset>,
     /// Largest disparity searched with --left/--right, pixels (default: calib.txt's ndisp, else a
@@ -117,7 +117,9 @@ impl DepthInput {
                     scene.set_calibration(c)?;
                 }
                 if self.preset.is_some() || self.max_disparity.is_some() {
-                    let options = StereoOptions::preset(self.preset.unwrap_or(Preset::Balanced));
+                    let options = self
+                        .preset
+                        .map_or_else(Scene::default_stereo_options, StereoOptions::preset);
                     scene.set_stereo_options_auto_range(options, self.max_disparity)?;
                 }
                 photo.get_or_insert(left);

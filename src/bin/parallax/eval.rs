@@ -197,12 +197,13 @@ fn configurations(preset: &str) -> Result<Vec<(String, String, StereoOptions)>> 
         ),
         thesis,
     ));
-    // `balanced` is census + 8-path SGM + coarse-to-fine (`quality` the full search with a wider
-    // fit and uniqueness); the other combinations of paths and search.
+    // `balanced` is census + 4-path SGM + coarse-to-fine (`quality` 8 paths over the full search
+    // with a wider census and the local fit); the other combinations of paths and search.
     for (name, o) in [
         (
             "census+sgm8",
             StereoOptions {
+                aggregation: Aggregation::Sgm8,
                 coarse_levels: 0,
                 ..b.clone()
             },
@@ -210,15 +211,14 @@ fn configurations(preset: &str) -> Result<Vec<(String, String, StereoOptions)>> 
         (
             "census+sgm4",
             StereoOptions {
-                aggregation: Aggregation::Sgm4,
                 coarse_levels: 0,
                 ..b.clone()
             },
         ),
         (
-            "census+sgm4+c2f",
+            "census+sgm8+c2f",
             StereoOptions {
-                aggregation: Aggregation::Sgm4,
+                aggregation: Aggregation::Sgm8,
                 ..b.clone()
             },
         ),

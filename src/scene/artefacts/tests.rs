@@ -123,7 +123,7 @@ fn moving_an_artefact_does_not_invalidate_reconstruction() {
     s.set_stereo_pair(&l.view(), &r.view()).unwrap();
     s.set_stereo_options(StereoOptions {
         max_disparity: 8,
-        ..StereoOptions::default()
+        ..Scene::default_stereo_options()
     })
     .unwrap();
     let id = s

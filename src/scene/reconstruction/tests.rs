@@ -282,7 +282,7 @@ fn stereo_feeds_the_mesh_and_mesh_options_do_not_rematch() {
     s.set_stereo_pair(&l.view(), &r.view()).unwrap();
     s.set_stereo_options(StereoOptions {
         max_disparity: 16,
-        ..StereoOptions::default()
+        ..Scene::default_stereo_options()
     })
     .unwrap();
     s.set_calibration(
