@@ -167,7 +167,10 @@ fn census_row(
                 *c = (((cl ^ cr).count_ones() as u16 * scale) >> 8) as u8;
             }
         }
-        costs[valid..].fill(OUTSIDE_COST);
+        // Only near the left border: an empty `fill` is still a call to `memset` per pixel.
+        if valid < k {
+            costs[valid..].fill(OUTSIDE_COST);
+        }
     }
 }
 

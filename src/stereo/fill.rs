@@ -157,7 +157,6 @@ fn sweep_rows(src: &[f32], w: usize, holes: &[usize], looking: Vertical) -> Vec<
     // direction j (0 straight, 1 towards smaller x, 2 towards larger x), itself included.
     let mut carry = [vec![f32::NAN; w], vec![f32::NAN; w], vec![f32::NAN; w]];
     let mut next = carry.clone();
-    let (mut to_left, mut to_right) = (vec![f32::NAN; w], vec![f32::NAN; w]);
     let row_holes = |y: usize| {
         let start = holes.partition_point(|&p| p < y * w);
         let end = holes.partition_point(|&p| p < (y + 1) * w);
@@ -183,30 +182,44 @@ fn sweep_rows(src: &[f32], w: usize, holes: &[usize], looking: Vertical) -> Vec<
         }
         next[2][w - 1] = pick(row[w - 1], f32::NAN);
         let range = row_holes(y);
-        if !range.is_empty() {
-            let found = &mut out[range.clone()];
-            if looking == Vertical::Up {
-                // to_left[x]: the nearest valid value left of x; to_right[x] likewise.
-                let mut last = f32::NAN;
-                for (t, &v) in to_left.iter_mut().zip(row) {
-                    *t = last;
-                    last = pick(v, last);
-                }
-                last = f32::NAN;
-                for (t, &v) in to_right.iter_mut().zip(row).rev() {
-                    *t = last;
-                    last = pick(v, last);
-                }
-            }
-            for (c, &p) in found.iter_mut().zip(&holes[range]) {
+        let xs = &holes[range.clone()];
+        let found = &mut out[range];
+        for (c, &p) in found.iter_mut().zip(xs) {
+            let x = p - y * w;
+            // At a hole, `next` holds what was carried to it: its nearest valid values along the
+            // three directions through the rows already swept.
+            *c = if looking == Vertical::Up {
+                [f32::NAN, f32::NAN, next[0][x], next[1][x], next[2][x]]
+            } else {
+                [next[0][x], next[1][x], next[2][x], f32::NAN, f32::NAN]
+            };
+        }
+        if looking == Vertical::Up {
+            // Along the row, a hole's nearest valid values are the pixels just outside its run
+            // of holes: found from the holes alone, not by scanning the row.
+            let mut left = f32::NAN;
+            let mut previous = usize::MAX;
+            for (c, &p) in found.iter_mut().zip(xs) {
                 let x = p - y * w;
-                // At a hole, `next` holds what was carried to it: its nearest valid values
-                // along the three directions through the rows already swept.
-                *c = if looking == Vertical::Up {
-                    [to_right[x], to_left[x], next[0][x], next[1][x], next[2][x]]
-                } else {
-                    [next[0][x], next[1][x], next[2][x], f32::NAN, f32::NAN]
-                };
+                if x == 0 {
+                    left = f32::NAN;
+                } else if previous != x - 1 {
+                    left = row[x - 1];
+                }
+                c[1] = left;
+                previous = x;
+            }
+            let mut right = f32::NAN;
+            let mut following = usize::MAX;
+            for (c, &p) in found.iter_mut().zip(xs).rev() {
+                let x = p - y * w;
+                if x + 1 == w {
+                    right = f32::NAN;
+                } else if following != x + 1 {
+                    right = row[x + 1];
+                }
+                c[0] = right;
+                following = x;
             }
         }
         std::mem::swap(&mut carry, &mut next);

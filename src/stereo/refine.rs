@@ -264,8 +264,12 @@ fn decide_row<const K: usize, const MINPOS: bool>(
 /// the right-view pixels its disparities reach (see [`decide_row`]).
 #[inline(always)]
 fn update_right(mirrored: &mut [u32], costs: &[u16], base: u32) {
-    for ((r, &v), i) in mirrored.iter_mut().zip(costs).zip(0u32..) {
-        *r = (*r).min((v as u32) << 16 | (base + i));
+    // Indexed over slices of one length: the compiler vectorises this form (with a zipped
+    // `0u32..` counter it kept the loop scalar).
+    let n = mirrored.len().min(costs.len());
+    let (mirrored, costs) = (&mut mirrored[..n], &costs[..n]);
+    for i in 0..n {
+        mirrored[i] = mirrored[i].min((costs[i] as u32) << 16 | (base + i as u32));
     }
 }
 
