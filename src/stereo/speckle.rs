@@ -46,14 +46,22 @@ pub fn remove_speckles(
                 };
                 let rows = forest.parent.len() / w;
                 for y in 0..rows {
+                    // The first pixel of the current run of joined pixels along the row.
+                    let mut run_start = 0;
                     for x in 0..w {
                         let i = y * w + x;
                         let p = forest.offset + i;
-                        if x + 1 < w && joined(p, p + 1) {
-                            forest.union(i, i + 1);
+                        // A pixel joined to its left neighbour is untouched so far (its upper
+                        // neighbour comes next): it hangs under its run's first pixel
+                        // directly, without the two searches of a union. That pixel's index is
+                        // smaller, so every root stays the smallest index of its set.
+                        if x > 0 && joined(p - 1, p) {
+                            forest.parent[i] = (forest.offset + run_start) as u32;
+                        } else {
+                            run_start = i;
                         }
-                        if y + 1 < rows && joined(p, p + w) {
-                            forest.union(i, i + w);
+                        if y > 0 && joined(p - w, p) {
+                            forest.union(i - w, i);
                         }
                     }
                 }
