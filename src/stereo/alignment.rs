@@ -184,22 +184,30 @@ fn track(left: &Raster<u8>, right: &Raster<u8>, x: usize, y: usize, d: f32) -> O
     }
     // Template: the left window, mean and contrast removed, and its gradients.
     const N: usize = (2 * RADIUS + 1) * (2 * RADIUS + 1);
+    const SIDE: usize = 2 * RADIUS + 1;
     let mut t = [0f32; N];
     let mut gx = [0f32; N];
     let mut gy = [0f32; N];
-    let at = |xx: usize, yy: usize| *left.get(xx, yy) as f32;
-    let mut i = 0;
-    for yy in y - RADIUS..=y + RADIUS {
-        for xx in x - RADIUS..=x + RADIUS {
-            t[i] = at(xx, yy);
-            gx[i] = 0.5 * (at(xx + 1, yy) - at(xx - 1, yy));
-            gy[i] = 0.5 * (at(xx, yy + 1) - at(xx, yy - 1));
-            i += 1;
+    // The window's rows, with one pixel more on each side for the gradients.
+    let row = |j: usize| &left.row(y + j - RADIUS)[x - RADIUS - 1..x + RADIUS + 2];
+    for j in 0..SIDE {
+        for (v, &p) in t[j * SIDE..(j + 1) * SIDE].iter_mut().zip(&row(j)[1..]) {
+            *v = p as f32;
         }
     }
+    // Most samples without texture stop here, before their gradients are taken.
     let (mean, sd) = mean_sd(&t);
     if sd < 2.0 {
         return None;
+    }
+    let above = |j: usize| &left.row(y + j - RADIUS - 1)[x - RADIUS..=x + RADIUS];
+    let below = |j: usize| &left.row(y + j - RADIUS + 1)[x - RADIUS..=x + RADIUS];
+    for j in 0..SIDE {
+        let (r, up, down) = (row(j), above(j), below(j));
+        for i in 0..SIDE {
+            gx[j * SIDE + i] = 0.5 * (r[i + 2] as f32 - r[i] as f32);
+            gy[j * SIDE + i] = 0.5 * (down[i] as f32 - up[i] as f32);
+        }
     }
     for (v, (a, b)) in t.iter_mut().zip(gx.iter_mut().zip(gy.iter_mut())) {
         *v = (*v - mean) / sd;
@@ -222,7 +230,6 @@ fn track(left: &Raster<u8>, right: &Raster<u8>, x: usize, y: usize, d: f32) -> O
     }
     let (mut u, mut v) = (start, y as f32);
     let mut r = [0f32; N];
-    const SIDE: usize = 2 * RADIUS + 1;
     for _ in 0..ITERATIONS {
         // One fraction for the whole window: bilinear weights once, then rows read as slices.
         let (x0, y0) = (u.floor(), v.floor());
@@ -287,20 +294,22 @@ fn mean_sd(v: &[f32]) -> (f32, f32) {
 /// (iteratively reweighted least squares from the median, scale from the median absolute
 /// deviation).
 fn robust_plane(samples: &[Shift], cx: f32, cy: f32) -> Option<VerticalResidual> {
-    let mut vs: Vec<f32> = samples.iter().map(|s| s.v).collect();
-    vs.sort_by(f32::total_cmp);
+    // Medians by selection, not a sort of every sample (nine of them per pair).
+    let median = |mut v: Vec<f32>| {
+        let mid = v.len() / 2;
+        *v.select_nth_unstable_by(mid, f32::total_cmp).1
+    };
     let mut fit = VerticalResidual {
-        offset: vs[vs.len() / 2],
+        offset: median(samples.iter().map(|s| s.v).collect()),
         ..Default::default()
     };
     let residual = |f: &VerticalResidual, s: &Shift| {
         s.v - f.offset - f.per_column * (s.x - cx) - f.per_row * (s.y - cy)
     };
     for _ in 0..8 {
-        let mut res: Vec<f32> = samples.iter().map(|s| residual(&fit, s).abs()).collect();
-        res.sort_by(f32::total_cmp);
+        let mad = median(samples.iter().map(|s| residual(&fit, s).abs()).collect());
         // Tukey's usual cut-off with σ from the MAD; at least 0.1 px.
-        let cut = (TUKEY_C * MAD_TO_SIGMA * res[res.len() / 2] as f64).max(0.1);
+        let cut = (TUKEY_C * MAD_TO_SIGMA * mad as f64).max(0.1);
         let (mut normal, mut rhs) = (DMat3::ZERO, DVec3::ZERO);
         for s in samples {
             let wgt = tukey(residual(&fit, s) as f64, cut);
