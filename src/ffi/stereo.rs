@@ -18,7 +18,7 @@ pub enum plx_stereo_preset {
     /// pair's residual vertical misalignment; consistency checks, fill and edge-aware smoothing.
     Balanced = 1,
     /// Census 9×7, 8-path SGM with a wider window after the half-resolution pass and a local fit
-    /// on the grey levels: about 1.6× balanced's time, more precise below a pixel (default).
+    /// on the grey levels: nearly twice balanced's time, more precise below a pixel (default).
     Quality = 2,
 }
 

@@ -51,8 +51,8 @@ pub enum Preset {
     /// and measures the pair's residual vertical misalignment, undone before the full-size
     /// match; equiangular sub-pixel, L/R check, uniqueness 5 %, speckles < 100 px, background
     /// fill, 3 passes of edge-aware smoothing. The default of the matcher on its own, chosen for
-    /// its run time: on Middlebury, `Quality`'s 8 paths, wider windows and local fit buy half a
-    /// point of bad 0.5 px for about 1.6× the time (docs/stereo-eval.md, stop 39).
+    /// its run time: on Middlebury, `Quality`'s 8 paths, wider census and window and local fit
+    /// buy half a point of bad 0.5 px for nearly twice the time (docs/stereo-eval.md, stop 39).
     Balanced,
     /// Census 9×7, 8-path SGM, a window of 32 disparities after the half-size pass, 5×5 local
     /// fit on the grey levels; otherwise as `Balanced`. What [`crate::scene::Scene`] matches
