@@ -321,7 +321,7 @@ impl Scene {
     /// preset, not the matcher's default `balanced`. The scene's mesh normals, planes and
     /// placements need `quality`'s sub-pixel precision on noisy photographs (on the built-in
     /// 16-spp renders, `balanced` moved `room`'s floor placement from +0.65 % to +5.4 % of the
-    /// distance and lost `clutter`'s floor plane; docs/stereo-eval.md, stop 39).
+    /// distance and left `clutter`'s up to the camera fallback; docs/stereo-eval.md, stop 39).
     pub fn default_stereo_options() -> StereoOptions {
         StereoOptions::preset(stereo::Preset::Quality)
     }

@@ -120,7 +120,7 @@ pub fn window_bases(
         .for_each(|(y, row)| {
             let src = &coarse_bases[(y / 2).min(ch - 1) * cw..][..cw];
             for (x, b) in row.iter_mut().enumerate() {
-                *b = src[x / 2];
+                *b = src[(x / 2).min(cw - 1)];
             }
         });
     bases
