@@ -323,8 +323,11 @@ impl Scene {
     /// 16-spp renders, `balanced` moved `room`'s floor placement from +0.65 % to +5.4 % of the
     /// distance and left `clutter`'s up to the camera fallback; docs/stereo-eval.md, stop 39).
     pub fn default_stereo_options() -> StereoOptions {
-        StereoOptions::preset(stereo::Preset::Quality)
+        StereoOptions::preset(Self::DEFAULT_STEREO_PRESET)
     }
+
+    /// The preset of [`Scene::default_stereo_options`].
+    pub const DEFAULT_STEREO_PRESET: stereo::Preset = stereo::Preset::Quality;
 
     /// Sets the stereo matcher's options, `max_disparity` included (it is checked against the
     /// image width when matching). Without this call the scene uses

@@ -6,6 +6,7 @@ use super::boundary::{invalid, null_argument, CallError};
 use super::scene::{plx_scene, with_scene};
 use crate::error::Status;
 use crate::image::Raster;
+use crate::scene::Scene;
 use crate::stereo::{Aggregation, CostKind, Preset, StereoOptions};
 
 /// Presets of `plx_stereo_options::preset`.
@@ -20,6 +21,16 @@ pub enum plx_stereo_preset {
     /// Census 9×7, 8-path SGM with a wider window after the half-resolution pass and a local fit
     /// on the grey levels: nearly twice balanced's time, more precise below a pixel (default).
     Quality = 2,
+}
+
+impl From<Preset> for plx_stereo_preset {
+    fn from(preset: Preset) -> Self {
+        match preset {
+            Preset::Fast => plx_stereo_preset::Fast,
+            Preset::Balanced => plx_stereo_preset::Balanced,
+            Preset::Quality => plx_stereo_preset::Quality,
+        }
+    }
 }
 
 /// Matching methods of `plx_stereo_options::method`.
@@ -68,7 +79,7 @@ pub unsafe extern "C" fn plx_stereo_options_init(options: *mut plx_stereo_option
         }
         *options = plx_stereo_options {
             size: size_of::<plx_stereo_options>(),
-            preset: plx_stereo_preset::Quality as u32,
+            preset: plx_stereo_preset::from(Scene::DEFAULT_STEREO_PRESET) as u32,
             max_disparity: 0,
             method: plx_stereo_method::PresetDefault as u32,
             fill: 1,
@@ -93,7 +104,8 @@ unsafe fn read_options(
             "options.size is {size}: set it with plx_stereo_options_init"
         )));
     }
-    let preset = match field(offset_of!(plx_stereo_options, preset)).unwrap_or(2) {
+    let scene_default = plx_stereo_preset::from(Scene::DEFAULT_STEREO_PRESET) as u32;
+    let preset = match field(offset_of!(plx_stereo_options, preset)).unwrap_or(scene_default) {
         0 => Preset::Fast,
         1 => Preset::Balanced,
         2 => Preset::Quality,

@@ -30,17 +30,7 @@ const OCCLUSION_STEP: f32 = 2.0;
 /// pixels filled. An image without a single estimate becomes 0 everywhere.
 pub fn fill_holes(disparity: &mut Raster<f32>, state: &[PixelState]) -> usize {
     let (w, h) = (disparity.width(), disparity.height());
-    let holes: Vec<usize> = disparity
-        .pixels()
-        .par_chunks(w)
-        .enumerate()
-        .flat_map_iter(|(y, row)| {
-            row.iter()
-                .enumerate()
-                .filter(|(_, v)| v.is_nan())
-                .map(move |(x, _)| y * w + x)
-        })
-        .collect();
+    let holes = indices_where(disparity.pixels(), w, |v| v.is_nan());
     if holes.is_empty() {
         return 0;
     }
@@ -240,8 +230,7 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
             || [vec![0f32; w + 2], vec![0f32; w + 2], vec![0f32; w + 2]],
             |[up, mid, down], (y, (mag, dir))| {
                 // The three rows as f32 with one replicated pixel on each side (borders
-                // replicate), read through slices of length w at each column offset so that the
-                // Sobel loop has no bounds checks and vectorises.
+                // replicate), read through `columns` so that the Sobel loop vectorises.
                 let pad = |out: &mut [f32], yy: usize| {
                     let row = image.row(yy);
                     out[0] = row[0] as f32;
@@ -253,10 +242,9 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
                 pad(up, y.saturating_sub(1));
                 pad(mid, y);
                 pad(down, (y + 1).min(h - 1));
-                let (up_left, up_centre, up_right) = (&up[..w], &up[1..=w], &up[2..w + 2]);
-                let (left, right) = (&mid[..w], &mid[2..w + 2]);
-                let (down_left, down_centre, down_right) =
-                    (&down[..w], &down[1..=w], &down[2..w + 2]);
+                let [up_left, up_centre, up_right] = columns(up);
+                let [left, _, right] = columns(mid);
+                let [down_left, down_centre, down_right] = columns(down);
                 let (mag, dir) = (&mut mag[..w], &mut dir[..w]);
                 for x in 0..w {
                     let gx = (up_right[x] + 2.0 * right[x] + down_right[x])
@@ -292,11 +280,9 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
             mid[1..=w].copy_from_slice(row(Some(y)));
             down[1..=w].copy_from_slice(row(Some(y + 1)));
             let dirs = &dir[y * w..(y + 1) * w];
-            // Padded column x + 1 is image column x: each slice below starts at the offset of
-            // one neighbour and is `w` long, so the loop indexes them without bounds checks.
-            let (left, centre, right) = (&mid[..w], &mid[1..=w], &mid[2..w + 2]);
-            let (up_left, up_centre, up_right) = (&up[..w], &up[1..=w], &up[2..w + 2]);
-            let (down_left, down_centre, down_right) = (&down[..w], &down[1..=w], &down[2..w + 2]);
+            let [left, centre, right] = columns(mid);
+            let [up_left, up_centre, up_right] = columns(up);
+            let [down_left, down_centre, down_right] = columns(down);
             let strong = &mut strong[..w];
             for x in 0..w {
                 // The neighbours ahead and behind along directions 0 (x), 1 (diagonal ↘), 2 (y)
@@ -317,16 +303,7 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
     );
     // Hysteresis: weak edges connected to strong ones survive; a weak pixel reached becomes
     // strong, so `strong` also marks what has been taken.
-    let mut stack: Vec<usize> = strong
-        .par_chunks(w)
-        .enumerate()
-        .flat_map_iter(|(y, row)| {
-            row.iter()
-                .enumerate()
-                .filter(|&(_, &s)| s == 2)
-                .map(move |(x, _)| y * w + x)
-        })
-        .collect();
+    let mut stack = indices_where(&strong, w, |&s| s == 2);
     while let Some(p) = stack.pop() {
         let (x, y) = (p % w, p / w);
         for qy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
@@ -340,6 +317,30 @@ pub fn canny(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
         }
     }
     strong.par_iter().map(|&s| s == 2).collect()
+}
+
+/// A row padded with one value on each side, as three slices of the row's width: each pixel's
+/// left neighbour, itself and its right neighbour at the same index. Loops over slices of one
+/// known length have no bounds checks, so the compiler vectorises them.
+fn columns(padded: &[f32]) -> [&[f32]; 3] {
+    let w = padded.len() - 2;
+    [&padded[..w], &padded[1..=w], &padded[2..]]
+}
+
+/// The row-major indices (`y · w + x`) of the values that `keep`, ascending, with the rows
+/// scanned on all threads.
+fn indices_where<T: Sync>(values: &[T], w: usize, keep: impl Fn(&T) -> bool + Sync) -> Vec<usize> {
+    values
+        .par_chunks(w)
+        .enumerate()
+        .flat_map_iter(|(y, row)| {
+            let keep = &keep;
+            row.iter()
+                .enumerate()
+                .filter(move |(_, v)| keep(v))
+                .map(move |(x, _)| y * w + x)
+        })
+        .collect()
 }
 
 /// Settings of [`smooth`].
@@ -627,6 +628,97 @@ mod tests {
         assert!(canny(&Raster::filled(8, 8, 77u8), 10.0, 30.0)
             .iter()
             .all(|e| !e));
+    }
+
+    /// [`canny`] written plainly: Sobel with replicated borders, the direction by its angle,
+    /// suppression against the two neighbours along it (0 outside the image), and hysteresis as
+    /// a flood from the strong pixels.
+    fn canny_plainly(image: &Raster<u8>, low: f32, high: f32) -> Vec<bool> {
+        let (w, h) = (image.width() as isize, image.height() as isize);
+        let at = |x: isize, y: isize| {
+            *image.get(x.clamp(0, w - 1) as usize, y.clamp(0, h - 1) as usize) as f32
+        };
+        let mut mag = vec![0f32; (w * h) as usize];
+        let mut step = vec![(0isize, 0isize); (w * h) as usize];
+        for y in 0..h {
+            for x in 0..w {
+                let gx = (at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1))
+                    - (at(x - 1, y - 1) + 2.0 * at(x - 1, y) + at(x - 1, y + 1));
+                let gy = (at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1))
+                    - (at(x - 1, y - 1) + 2.0 * at(x, y - 1) + at(x + 1, y - 1));
+                let p = (y * w + x) as usize;
+                mag[p] = (gx * gx + gy * gy).sqrt() / 4.0;
+                let (ax, ay) = (gx.abs(), gy.abs());
+                step[p] = if ay <= 0.4142 * ax {
+                    (1, 0)
+                } else if ax <= 0.4142 * ay {
+                    (0, 1)
+                } else if (gx > 0.0) == (gy > 0.0) {
+                    (1, 1)
+                } else {
+                    (-1, 1)
+                };
+            }
+        }
+        let m = |x: isize, y: isize| {
+            if x < 0 || y < 0 || x >= w || y >= h {
+                0.0
+            } else {
+                mag[(y * w + x) as usize]
+            }
+        };
+        let mut level = vec![0u8; (w * h) as usize];
+        for y in 0..h {
+            for x in 0..w {
+                let p = (y * w + x) as usize;
+                let (dx, dy) = step[p];
+                let v = mag[p];
+                if v >= m(x + dx, y + dy) && v >= m(x - dx, y - dy) && v >= low {
+                    level[p] = if v >= high { 2 } else { 1 };
+                }
+            }
+        }
+        let mut edge: Vec<bool> = level.iter().map(|&l| l == 2).collect();
+        let mut stack: Vec<isize> = (0..w * h).filter(|&p| edge[p as usize]).collect();
+        while let Some(p) = stack.pop() {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let (qx, qy) = (p % w + dx, p / w + dy);
+                    let q = qy * w + qx;
+                    if qx >= 0
+                        && qy >= 0
+                        && qx < w
+                        && qy < h
+                        && !edge[q as usize]
+                        && level[q as usize] == 1
+                    {
+                        edge[q as usize] = true;
+                        stack.push(q);
+                    }
+                }
+            }
+        }
+        edge
+    }
+
+    #[test]
+    fn canny_matches_the_plain_definition_in_every_direction() {
+        use crate::mesh::surfaces::XorShift;
+        let mut rng = XorShift(0xca77);
+        // Rings (edges in every direction, weak ones joined to strong ones) under noise, and
+        // images one pixel wide or high.
+        for (w, h) in [(41, 29), (1, 9), (9, 1), (2, 2)] {
+            let image = Raster::from_fn(w, h, |x, y| {
+                let (dx, dy) = (x as f32 - 20.0, y as f32 - 14.0);
+                let ring = ((dx * dx + dy * dy).sqrt() / 4.0) as u32 % 3;
+                (40 + ring * 50 + rng.below(25) as u32) as u8
+            });
+            let fast = canny(&image, 10.0, 30.0);
+            assert_eq!(fast, canny_plainly(&image, 10.0, 30.0), "{w}x{h}");
+            if w > 2 {
+                assert!(fast.iter().any(|&e| e) && !fast.iter().all(|&e| e));
+            }
+        }
     }
 
     /// [`smooth`] written plainly: every neighbour of every pixel, its weight with `exp`.

@@ -146,4 +146,77 @@ mod tests {
         let b = window_bases(&Raster::filled(4, 4, 31.5f32), 8, 8, 16, 63);
         assert!(b.iter().all(|&v| v == 48));
     }
+
+    #[test]
+    fn reduce_is_the_binomial_filter_with_replicated_borders() {
+        use crate::mesh::surfaces::XorShift;
+        let mut rng = XorShift(0x9e11);
+        for (w, h) in [(1usize, 1usize), (2, 3), (13, 9), (16, 7)] {
+            let image = Raster::from_fn(w, h, |_, _| rng.below(256) as u8);
+            let taps = [1u32, 4, 6, 4, 1];
+            let at = |x: isize, y: isize| {
+                let (x, y) = (x.clamp(0, w as isize - 1), y.clamp(0, h as isize - 1));
+                *image.get(x as usize, y as usize) as u32
+            };
+            let r = reduce(&image);
+            assert_eq!((r.width(), r.height()), (w.div_ceil(2), h.div_ceil(2)));
+            for cy in 0..r.height() {
+                for cx in 0..r.width() {
+                    let mut s = 0;
+                    for (j, tj) in taps.iter().enumerate() {
+                        for (i, ti) in taps.iter().enumerate() {
+                            let (x, y) =
+                                (2 * cx as isize + i as isize, 2 * cy as isize + j as isize);
+                            s += tj * ti * at(x - 2, y - 2);
+                        }
+                    }
+                    assert_eq!(
+                        *r.get(cx, cy) as u32,
+                        (s + 128) / 256,
+                        "{w}x{h} at {cx},{cy}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn window_starts_follow_the_plain_neighbourhood_rule() {
+        use crate::mesh::surfaces::XorShift;
+        let mut rng = XorShift(0xba5e);
+        let (w, h, k, max) = (23usize, 15usize, 16usize, 63usize);
+        // Mostly smooth disparities with jumps, and a few holes (NaN), which the rule skips.
+        let coarse = Raster::from_fn(w.div_ceil(2), h.div_ceil(2), |x, _| match rng.below(20) {
+            0 => f32::NAN,
+            1 => rng.below(32) as f32,
+            _ => 10.0 + x as f32 * 0.5,
+        });
+        let bases = window_bases(&coarse, w, h, k, max);
+        let (cw, ch) = (coarse.width(), coarse.height());
+        for y in 0..h {
+            for x in 0..w {
+                let (cx, cy) = (x / 2, y / 2);
+                let own = 2.0 * *coarse.get(cx, cy);
+                let (mut lo, mut hi) = (own, own);
+                for qy in cy.saturating_sub(1)..=(cy + 1).min(ch - 1) {
+                    for qx in cx.saturating_sub(1)..=(cx + 1).min(cw - 1) {
+                        lo = lo.min(2.0 * *coarse.get(qx, qy));
+                        hi = hi.max(2.0 * *coarse.get(qx, qy));
+                    }
+                }
+                let centre = if hi - lo + 4.0 <= k as f32 {
+                    0.5 * (lo + hi)
+                } else {
+                    own
+                };
+                let start = (centre - k as f32 / 2.0).round();
+                let expected = if start.is_finite() {
+                    start.clamp(0.0, (max + 1 - k) as f32) as u16
+                } else {
+                    0
+                };
+                assert_eq!(bases[y * w + x], expected, "at {x},{y}");
+            }
+        }
+    }
 }
