@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
 """OpenCV StereoSGBM as the peer of `parallax eval stereo --peer opencv`.
 
-Usage: opencv_sgbm.py OUT_DIR SCENE_DIR...
+Usage: opencv_sgbm.py [--repeat N] OUT_DIR SCENE_DIR...
 
 For every Middlebury scene folder (im0.png, im1.png, calib.txt) and both modes (MODE_SGBM_3WAY,
 MODE_HH4) it writes OUT_DIR/<scene>.<mode>.pfm (disparity, inf = no estimate, Middlebury PFM) and
-prints one JSON line {"scene", "mode", "ms", "pfm"} where ms times compute() alone, after a first
-line {"opencv": VERSION} (the peer's timings and scores differ between releases).
+prints one JSON line {"scene", "mode", "ms", "pfm"} where ms times compute() alone (the median of
+N calls on the same StereoSGBM object, N = --repeat, default 1, as `parallax eval stereo --repeat`
+times its own matcher), after a first line {"opencv": VERSION} (the peer's timings and scores
+differ between releases).
 Parameters as in shared/data/README.md: blockSize 3, P1 = 8*3*9, P2 = 32*3*9, uniquenessRatio 10,
 speckleWindowSize 100, speckleRange 32, disp12MaxDiff 1; numDisparities = ndisp rounded up to 16.
 """
@@ -37,7 +39,12 @@ def write_pfm(path, disparity):
 
 
 def main():
-    out_dir, scenes = sys.argv[1], sys.argv[2:]
+    args = sys.argv[1:]
+    repeat = 1
+    if args[:1] == ["--repeat"]:
+        repeat = max(1, int(args[1]))
+        args = args[2:]
+    out_dir, scenes = args[0], args[1:]
     os.makedirs(out_dir, exist_ok=True)
     print(json.dumps({"opencv": cv2.__version__}), flush=True)
     modes = {"SGBM_3WAY": cv2.STEREO_SGBM_MODE_SGBM_3WAY, "HH4": cv2.STEREO_SGBM_MODE_HH4}
@@ -54,9 +61,12 @@ def main():
                 minDisparity=0, numDisparities=num, blockSize=3,
                 P1=8 * 3 * 9, P2=32 * 3 * 9, disp12MaxDiff=1, uniquenessRatio=10,
                 speckleWindowSize=100, speckleRange=32, mode=mode)
-            start = time.perf_counter()
-            raw = sgbm.compute(left, right)
-            ms = (time.perf_counter() - start) * 1e3
+            times = []
+            for _ in range(repeat):
+                start = time.perf_counter()
+                raw = sgbm.compute(left, right)
+                times.append((time.perf_counter() - start) * 1e3)
+            ms = sorted(times)[len(times) // 2]
             disparity = raw.astype(np.float32) / 16.0
             disparity[raw < 0] = np.inf
             pfm = os.path.join(out_dir, f"{name}.{mode_name}.pfm")

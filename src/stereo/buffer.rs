@@ -7,6 +7,10 @@
 //! (`madvise(MADV_HUGEPAGE)`, Linux) before the first write turns them into a dozen 2 MiB faults
 //! (measured in docs/stereo-eval.md, stop 23). Elsewhere, or where the system has transparent
 //! huge pages off, the buffer is an ordinary `Vec`.
+//!
+//! A [`Workspace`] keeps those buffers between matches (see [`super::StereoMatcher`]): a host
+//! matching a stream of frames then neither allocates them again nor has the kernel zero their
+//! pages, some 20 MB per 0.35 MP frame.
 
 /// A transparent huge page on x86-64 and most aarch64 kernels, bytes.
 const HUGE_PAGE: usize = 2 << 20;
@@ -16,6 +20,51 @@ pub fn zeroed<T: bytemuck::Zeroable + Clone>(len: usize) -> Vec<T> {
     let v = vec![T::zeroed(); len];
     advise_huge_pages(&v);
     v
+}
+
+/// A buffer of `len` values made from `spare`'s memory, its old values left in place (only the
+/// part beyond `spare`'s length is zeroed), or a fresh [`zeroed`] one when `spare` holds too
+/// little. Only for buffers that every user writes before it reads them.
+pub fn reuse<T: bytemuck::Zeroable + Clone>(mut spare: Vec<T>, len: usize) -> Vec<T> {
+    if spare.capacity() < len {
+        // Freed first, so that the old and the new buffer are never held together.
+        drop(spare);
+        return zeroed(len);
+    }
+    spare.truncate(len);
+    spare.resize(len, T::zeroed());
+    spare
+}
+
+/// The matcher's large buffers, kept from one match to the next. Each is written before it is
+/// read (so stale values from an earlier pair never reach a result); an empty `Vec` until first
+/// used.
+#[derive(Debug, Default)]
+pub struct Workspace {
+    /// The aggregated costs `S` ([`super::sgm::Aggregated::s`]).
+    pub aggregated: Vec<u16>,
+    /// The per-pixel sums of the paths' minima ([`super::sgm::Aggregated::min_sum`]).
+    pub min_sum: Vec<u16>,
+    /// The stored cost volume of the aggregation.
+    pub costs: Vec<u8>,
+    /// The census transforms of the left and the right view.
+    pub census: [Vec<u64>; 2],
+    /// The half-size level's own buffers.
+    pub coarse: Option<Box<Workspace>>,
+}
+
+impl Workspace {
+    /// Bytes held, the half-size level's included.
+    pub fn bytes(&self) -> usize {
+        fn held<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        held(&self.aggregated)
+            + held(&self.min_sum)
+            + held(&self.costs)
+            + self.census.iter().map(held).sum::<usize>()
+            + self.coarse.as_ref().map_or(0, |c| c.bytes())
+    }
 }
 
 /// Asks the kernel to back `v`'s whole 2 MiB-aligned pages with huge pages; a no-op for small
@@ -59,5 +108,23 @@ mod tests {
             v.iter_mut().enumerate().for_each(|(i, x)| *x = i as u16);
             assert!(v.iter().enumerate().all(|(i, &x)| x == i as u16));
         }
+    }
+
+    #[test]
+    fn reused_buffers_keep_their_memory_and_have_the_asked_length() {
+        let spare: Vec<u16> = (0..100).collect();
+        let ptr = spare.as_ptr();
+        // Shorter: the same memory, the old values kept.
+        let v = reuse(spare, 40);
+        assert_eq!((v.len(), v.as_ptr()), (40, ptr));
+        assert_eq!(v[39], 39);
+        // Longer, within the capacity: the same memory, the new part zeroed.
+        let v = reuse(v, 90);
+        assert_eq!((v.len(), v.as_ptr()), (90, ptr));
+        assert_eq!((v[39], v[40], v[89]), (39, 0, 0));
+        // Beyond the capacity: a new zeroed buffer.
+        let v = reuse(v, 1000);
+        assert_eq!(v.len(), 1000);
+        assert!(v.iter().all(|&x| x == 0));
     }
 }

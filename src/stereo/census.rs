@@ -4,6 +4,7 @@
 
 use rayon::prelude::*;
 
+use super::buffer;
 use super::cost::{CostRows, OUTSIDE_COST};
 use crate::image::Raster;
 
@@ -21,6 +22,16 @@ pub struct CensusCost {
 /// Census transform with a `(2rx+1)×(2ry+1)` window (at most 63 neighbours); borders replicate.
 /// Neighbour `t` (row-major, the centre skipped) is bit `count − 1 − t` of a pixel's string.
 pub fn census_transform(image: &Raster<u8>, rx: usize, ry: usize) -> Vec<u64> {
+    census_transform_into(image, rx, ry, Vec::new())
+}
+
+/// [`census_transform`] into `spare`'s memory when it holds enough (see [`buffer::reuse`]).
+pub fn census_transform_into(
+    image: &Raster<u8>,
+    rx: usize,
+    ry: usize,
+    spare: Vec<u64>,
+) -> Vec<u64> {
     let (w, h) = (image.width(), image.height());
     // Rows padded by rx replicated pixels on each side, so the inner loop has no bounds logic.
     let pw = w + 2 * rx;
@@ -47,7 +58,8 @@ pub fn census_transform(image: &Raster<u8>, rx: usize, ry: usize) -> Vec<u64> {
         width: pw,
         height: h,
     };
-    let mut out = super::buffer::zeroed::<u64>(w * h);
+    // Every row is written whole (`census_row_body` clears it first).
+    let mut out = buffer::reuse(spare, w * h);
     out.par_chunks_mut(w).enumerate().for_each_init(
         || vec![0u8; w],
         |byte, (y, bits)| census_row_transform(&padded, &window, y, byte, bits),
@@ -107,16 +119,29 @@ fn census_row_body(
 impl CensusCost {
     /// Transforms both views (same size) with the given window half-sizes.
     pub fn new(left: &Raster<u8>, right: &Raster<u8>, rx: usize, ry: usize) -> Self {
+        Self::in_buffers(left, right, rx, ry, [Vec::new(), Vec::new()])
+    }
+
+    /// [`CensusCost::new`] in the memory of `spare` (the left and the right view's transforms,
+    /// as [`CensusCost::into_buffers`] gives them back).
+    pub fn in_buffers(
+        left: &Raster<u8>,
+        right: &Raster<u8>,
+        rx: usize,
+        ry: usize,
+        spare: [Vec<u64>; 2],
+    ) -> Self {
         let (w, h) = (left.width(), left.height());
         let bits = ((2 * rx + 1) * (2 * ry + 1) - 1).max(1);
-        let mut right_mirrored = census_transform(right, rx, ry);
+        let [spare_left, spare_right] = spare;
+        let mut right_mirrored = census_transform_into(right, rx, ry, spare_right);
         for row in right_mirrored.chunks_mut(w) {
             row.reverse();
         }
         CensusCost {
             width: w,
             height: h,
-            left: census_transform(left, rx, ry),
+            left: census_transform_into(left, rx, ry, spare_left),
             right_mirrored,
             scale: (255 * 256 / bits) as u16,
         }
@@ -125,6 +150,11 @@ impl CensusCost {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         (self.left.len() + self.right_mirrored.len()) * 8
+    }
+
+    /// The two transforms' memory, for [`CensusCost::in_buffers`].
+    pub fn into_buffers(self) -> [Vec<u64>; 2] {
+        [self.left, self.right_mirrored]
     }
 }
 

@@ -22,7 +22,7 @@
 
 use std::sync::Mutex;
 
-use super::buffer;
+use super::buffer::{self, Workspace};
 use super::cost::CostRows;
 use crate::image::Raster;
 
@@ -46,6 +46,14 @@ pub struct Aggregated {
     pub min_sum: Vec<u16>,
     /// Number of paths summed.
     pub paths: u32,
+}
+
+impl Aggregated {
+    /// Gives `S` and `min_sum` back to `spare` for the next match.
+    pub fn recycle(self, spare: &mut Workspace) {
+        spare.aggregated = self.s;
+        spare.min_sum = self.min_sum;
+    }
 }
 
 /// SGM penalties after clamping, and the P2 reduction table indexed by `|ΔI|`.
@@ -81,6 +89,10 @@ impl Penalties {
 /// `w·h·k` bytes and the other sweep reads it there, so costs are computed once, half on each
 /// thread; without it each sweep computes every row itself (no volume beyond `S`, for a full
 /// search whose memory bound leaves no room for one).
+///
+/// `S`, `min_sum` and the volume are made in `spare`'s memory when it holds enough; the volume
+/// goes back there, `S` and `min_sum` with [`Aggregated::recycle`].
+#[allow(clippy::too_many_arguments)]
 pub fn aggregate(
     cost: &dyn CostRows,
     guide: &Raster<u8>,
@@ -89,12 +101,14 @@ pub fn aggregate(
     paths: u32,
     penalties: &Penalties,
     store_costs: bool,
+    spare: &mut Workspace,
 ) -> Aggregated {
     let (w, h) = (cost.width(), cost.height());
-    let mut s = buffer::zeroed::<u16>(w * h * k);
-    let mut min_sum = buffer::zeroed::<u16>(w * h);
+    // None of them is read before a sweep writes it (see `Row::visited`).
+    let mut s = buffer::reuse(std::mem::take(&mut spare.aggregated), w * h * k);
+    let mut min_sum = buffer::reuse(std::mem::take(&mut spare.min_sum), w * h);
     let mut volume = if store_costs {
-        buffer::zeroed::<u8>(w * h * k)
+        buffer::reuse(std::mem::take(&mut spare.costs), w * h * k)
     } else {
         Vec::new()
     };
@@ -126,6 +140,9 @@ pub fn aggregate(
             run_sweep(&sweep, &rows)
         };
         rayon::join(|| sweep(true), || sweep(false));
+    }
+    if store_costs {
+        spare.costs = volume;
     }
     Aggregated {
         width: w,
@@ -616,7 +633,16 @@ mod tests {
         let guide = Raster::filled(12, 11, 0u8);
         for paths in [4, 8] {
             let pen = Penalties::new(10, 100, 0.0, paths);
-            let a = aggregate(&toy, &guide, None, 10, paths, &pen, paths == 8);
+            let a = aggregate(
+                &toy,
+                &guide,
+                None,
+                10,
+                paths,
+                &pen,
+                paths == 8,
+                &mut Workspace::default(),
+            );
             for p in 0..12 * 11 {
                 assert_eq!(argmin(&a.s[p * 10..p * 10 + 10]), 3, "pixel {p}");
             }
@@ -726,7 +752,16 @@ mod tests {
         let (s, min_sum) = reference(cost, guide, bases, k, paths, pen);
         let widen = |v: &[u16]| v.iter().map(|&x| x as u32).collect::<Vec<_>>();
         for store in [false, true] {
-            let a = aggregate(cost, guide, bases, k, paths, pen, store);
+            let a = aggregate(
+                cost,
+                guide,
+                bases,
+                k,
+                paths,
+                pen,
+                store,
+                &mut Workspace::default(),
+            );
             assert_eq!(widen(&a.s), s, "k {k}, paths {paths}, stored {store}");
             assert_eq!(
                 widen(&a.min_sum),
@@ -780,7 +815,16 @@ mod tests {
         let guide = Raster::filled(9, 9, 0u8);
         let pen = Penalties::new(u16::MAX, u16::MAX, 0.0, 8);
         assert!(8 * (255 + pen.p2_table[0] as u32) <= u16::MAX as u32);
-        let a = aggregate(&toy, &guide, None, 6, 8, &pen, false);
+        let a = aggregate(
+            &toy,
+            &guide,
+            None,
+            6,
+            8,
+            &pen,
+            false,
+            &mut Workspace::default(),
+        );
         assert!(a.s.iter().all(|&v| v < u16::MAX));
         for p in 0..81 {
             assert_eq!(argmin(&a.s[p * 6..p * 6 + 6]), 2);
@@ -794,7 +838,16 @@ mod tests {
         let pen = Penalties::new(10, 100, 0.0, 8);
         // Windows of 5 that all contain 6 but start at different places.
         let bases: Vec<u16> = (0..14 * 8).map(|p| (2 + p % 3) as u16).collect();
-        let a = aggregate(&toy, &guide, Some(&bases), 5, 8, &pen, true);
+        let a = aggregate(
+            &toy,
+            &guide,
+            Some(&bases),
+            5,
+            8,
+            &pen,
+            true,
+            &mut Workspace::default(),
+        );
         for (p, &base) in bases.iter().enumerate() {
             if p == 5 * 14 + 5 {
                 continue;

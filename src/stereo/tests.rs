@@ -596,3 +596,43 @@ fn penalties_grow_with_the_noise_of_the_pair_and_stay_for_a_clean_one() {
         "adapted {e_adapted} vs fixed {e_fixed}"
     );
 }
+
+#[test]
+fn a_kept_matcher_gives_the_one_off_results_whatever_it_matched_before() {
+    // Each match reuses buffers holding the previous, larger or differently shaped match's
+    // values: a read before a write would see them instead of a fresh buffer's zeros.
+    let big = step_pair(160, 64);
+    let small = step_pair(97, 41);
+    let runs = [
+        (&big, StereoOptions::preset(Preset::Quality)),
+        (&small, StereoOptions::preset(Preset::Balanced)),
+        (&small, StereoOptions::preset(Preset::Fast)),
+        (
+            &big,
+            StereoOptions {
+                cost: CostKind::Sad,
+                aggregation: Aggregation::Sgm4,
+                coarse_levels: 0,
+                ..StereoOptions::preset(Preset::Balanced)
+            },
+        ),
+        (&big, StereoOptions::preset(Preset::Balanced)),
+        (&small, StereoOptions::preset(Preset::Quality)),
+    ];
+    let bits = |r: &Raster<f32>| r.pixels().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    let mut matcher = StereoMatcher::new();
+    assert_eq!(matcher.retained_bytes(), 0);
+    for (i, ((l, r, _), o)) in runs.iter().enumerate() {
+        let o = StereoOptions {
+            max_disparity: 40,
+            ..o.clone()
+        };
+        let kept = matcher.match_pair(&l.view(), &r.view(), &o).unwrap();
+        let fresh = match_pair(&l.view(), &r.view(), &o).unwrap();
+        assert_eq!(bits(&kept.disparity), bits(&fresh.disparity), "run {i}");
+        assert_eq!(bits(&kept.confidence), bits(&fresh.confidence), "run {i}");
+        assert!(matcher.retained_bytes() > 0, "run {i}");
+    }
+    matcher.release();
+    assert_eq!(matcher.retained_bytes(), 0);
+}

@@ -62,10 +62,15 @@ pub struct StereoArgs {
     /// Where the tables, plot and peer outputs go.
     #[arg(long, default_value = "target/eval-stereo", value_name = "DIR")]
     out_dir: PathBuf,
-    /// Match each pair this many times and report the median time (and per-stage medians); for
-    /// profiling on a loaded machine. The peer still runs once.
+    /// Match each pair this many times and report the median time (and per-stage medians), for
+    /// a loaded machine; the peer's time is the median of as many `compute()` calls.
     #[arg(long, default_value_t = 1, value_name = "N")]
     repeat: u32,
+    /// Match every time with a fresh matcher (`stereo::match_pair`: working memory allocated,
+    /// and zeroed by the kernel, for each match) instead of one `StereoMatcher` kept for the whole
+    /// run, as a host matching a stream of frames keeps one.
+    #[arg(long)]
+    cold: bool,
     /// Also score these options: a JSON object of `StereoOptions` fields (inline, or `@FILE`),
     /// every field left out taken from the `balanced` preset, `max_disparity` from each scene
     /// (for example `{"smoothing_passes": 2, "p2": 400}`). May be given several times.
@@ -240,13 +245,21 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
     }
     let mut rows = Vec::new();
 
+    let mut kept = stereo::StereoMatcher::new();
+    let mut match_pair = |s: &Scene, o: &StereoOptions| {
+        if args.cold {
+            stereo::match_pair(&s.left.view(), &s.right.view(), o)
+        } else {
+            kept.match_pair(&s.left.view(), &s.right.view(), o)
+        }
+    };
     // Warm up (page faults, thread pool) so the first timed pair is not penalised.
     if let Some(s) = scenes.first() {
         let o = StereoOptions {
             max_disparity: ndisp(s) - 1,
             ..StereoOptions::default()
         };
-        stereo::match_pair(&s.left.view(), &s.right.view(), &o)?;
+        match_pair(s, &o)?;
     }
     let bar = args
         .common
@@ -267,7 +280,7 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
             };
             let mut runs = Vec::new();
             for _ in 0..args.repeat.max(1) {
-                runs.push(stereo::match_pair(&s.left.view(), &s.right.view(), &o)?);
+                runs.push(match_pair(s, &o)?);
             }
             let median = |mut v: Vec<f64>| {
                 v.sort_by(f64::total_cmp);
@@ -321,7 +334,7 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
         None => {}
         Some("opencv") => {
             let peer_rows = trace.time("peer.opencv", "--peer opencv", |_| {
-                run_opencv(&scenes, &args.out_dir, args.common.quiet)
+                run_opencv(&scenes, &args.out_dir, args.repeat, args.common.quiet)
             })?;
             rows.extend(peer_rows);
         }
@@ -359,7 +372,7 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
 }
 
 /// Creates (once) a virtual environment with OpenCV and runs `scripts/opencv_sgbm.py` in it.
-fn run_opencv(scenes: &[Scene], out_dir: &Path, quiet: bool) -> Result<Vec<Row>> {
+fn run_opencv(scenes: &[Scene], out_dir: &Path, repeat: u32, quiet: bool) -> Result<Vec<Row>> {
     let cache = std::env::var_os("XDG_CACHE_HOME")
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
@@ -410,6 +423,7 @@ fn run_opencv(scenes: &[Scene], out_dir: &Path, quiet: bool) -> Result<Vec<Row>>
     let out = run(
         Command::new(&python)
             .arg(&script)
+            .args(["--repeat", &repeat.max(1).to_string()])
             .arg(&peer_dir)
             .args(scenes.iter().map(|s| s.dir.as_os_str())),
         "running opencv_sgbm.py",
