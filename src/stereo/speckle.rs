@@ -1,7 +1,8 @@
 //! Speckle removal: small connected regions of similar disparity are taken for mismatches.
 //!
-//! Regions are labelled with union–find, in horizontal strips on all threads and then joined
-//! across the strips' borders. Two neighbours belong together when both are valid and their
+//! Regions are labelled with union–find, in horizontal strips on all threads, and counted there;
+//! then the strips are joined across their borders, where only the regions that cross a border
+//! move their counts (few, and the only serial work). Two neighbours belong together when both are valid and their
 //! disparities differ by at most the range; the relation is symmetric, so the regions are the
 //! connected components of one graph and come out the same as a flood fill's, whatever the order.
 
@@ -25,76 +26,93 @@ pub fn remove_speckles(
     if max_size == 0 || n == 0 || state.len() != n || n > u32::MAX as usize {
         return;
     }
-    let roots = {
-        let d = disparity.pixels();
-        let state = &*state;
-        let joined = |p: usize, q: usize| {
-            state[p] == PixelState::Valid
-                && state[q] == PixelState::Valid
-                && (d[q] - d[p]).abs() <= range
-        };
-        let mut parent: Vec<u32> = (0..n as u32).collect();
-        // Several strips a thread, so that uneven strips still share the work.
-        let strip_rows = h.div_ceil(4 * rayon::current_num_threads()).max(1);
-        parent
-            .par_chunks_mut(strip_rows * w)
-            .enumerate()
-            .for_each(|(s, strip)| {
-                let mut forest = Forest {
-                    parent: strip,
-                    offset: s * strip_rows * w,
-                };
-                let rows = forest.parent.len() / w;
-                for y in 0..rows {
-                    // The first pixel of the current run of joined pixels along the row.
-                    let mut run_start = 0;
-                    for x in 0..w {
-                        let i = y * w + x;
-                        let p = forest.offset + i;
-                        // A pixel joined to its left neighbour is untouched so far (its upper
-                        // neighbour comes next): it hangs under its run's first pixel
-                        // directly, without the two searches of a union. That pixel's index is
-                        // smaller, so every root stays the smallest index of its set.
-                        if x > 0 && joined(p - 1, p) {
-                            forest.parent[i] = (forest.offset + run_start) as u32;
-                        } else {
-                            run_start = i;
-                        }
-                        if y > 0 && joined(p - w, p) {
-                            forest.union(i - w, i);
-                        }
+    let d = disparity.pixels();
+    let joined = |p: usize, q: usize| {
+        state[p] == PixelState::Valid
+            && state[q] == PixelState::Valid
+            && (d[q] - d[p]).abs() <= range
+    };
+    // Every pixel's parent has a smaller index than the pixel (until it is a root), so one pass
+    // in ascending order leaves each pointing straight at its root.
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    // Several strips a thread, so that uneven strips still share the work.
+    let strip_rows = h.div_ceil(4 * rayon::current_num_threads()).max(1);
+    // Each strip's own regions, each pixel pointing at its region's first pixel in the strip,
+    // and each region's size in the strip, at that pixel.
+    let mut size = vec![0u32; n];
+    parent
+        .par_chunks_mut(strip_rows * w)
+        .zip(size.par_chunks_mut(strip_rows * w))
+        .enumerate()
+        .for_each(|(s, (strip, size))| {
+            let mut forest = Forest {
+                parent: strip,
+                offset: s * strip_rows * w,
+            };
+            let rows = forest.parent.len() / w;
+            for y in 0..rows {
+                // The first pixel of the current run of joined pixels along the row.
+                let mut run_start = 0;
+                for x in 0..w {
+                    let i = y * w + x;
+                    let p = forest.offset + i;
+                    // A pixel joined to its left neighbour is untouched so far (its upper
+                    // neighbour comes next): it hangs under its run's first pixel directly,
+                    // without the two searches of a union. That pixel's index is smaller, so
+                    // every root stays the smallest index of its set.
+                    if x > 0 && joined(p - 1, p) {
+                        forest.parent[i] = (forest.offset + run_start) as u32;
+                    } else {
+                        run_start = i;
+                    }
+                    if y > 0 && joined(p - w, p) {
+                        forest.union(i - w, i);
                     }
                 }
-            });
-        let mut forest = Forest {
-            parent: &mut parent,
-            offset: 0,
-        };
-        for y in (strip_rows..h).step_by(strip_rows) {
-            for x in 0..w {
-                let q = y * w + x;
-                if joined(q - w, q) {
-                    forest.union(q - w, q);
+            }
+            for i in 0..forest.parent.len() {
+                let root = forest.parent[forest.parent[i] as usize - forest.offset];
+                forest.parent[i] = root;
+                size[root as usize - forest.offset] += 1;
+            }
+        });
+    // Regions that cross a strip border: the later strip's root hangs under the earlier one's
+    // (the smaller index), and its count moves there once every border is joined.
+    let mut forest = Forest {
+        parent: &mut parent,
+        offset: 0,
+    };
+    let mut merged = Vec::new();
+    for y in (strip_rows..h).step_by(strip_rows) {
+        for x in 0..w {
+            let q = y * w + x;
+            if joined(q - w, q) {
+                if let Some(joined_root) = forest.union(q - w, q) {
+                    merged.push(joined_root);
                 }
             }
         }
-        for i in 0..n {
-            forest.find(i);
-        }
-        parent
-    };
-    // Every pixel now points at its root.
-    let mut size = vec![0u32; n];
-    for &r in &roots {
-        size[r as usize] += 1;
     }
+    let moves: Vec<(usize, u32)> = merged.iter().map(|&r| (forest.find(r), size[r])).collect();
+    for (root, count) in moves {
+        size[root] += count;
+    }
+    // A pixel's region: its strip root's root (a short chain, read only).
+    let parent = &parent;
+    let region = |i: usize| {
+        let mut r = parent[i] as usize;
+        while parent[r] as usize != r {
+            r = parent[r] as usize;
+        }
+        r
+    };
     disparity
         .pixels_mut()
         .par_iter_mut()
         .zip(state.par_iter_mut())
-        .zip(roots.par_iter())
-        .for_each(|((d, s), &r)| {
-            if *s == PixelState::Valid && (size[r as usize] as usize) < max_size {
+        .enumerate()
+        .for_each(|(i, (d, s))| {
+            if *s == PixelState::Valid && (size[region(i)] as usize) < max_size {
                 *s = PixelState::Mismatch;
                 *d = f32::NAN;
             }
@@ -122,13 +140,16 @@ impl Forest<'_> {
         }
     }
 
-    /// Joins the sets of `a` and `b` under the smaller root index.
-    fn union(&mut self, a: usize, b: usize) {
+    /// Joins the sets of `a` and `b` under the smaller root index; the root that stopped being
+    /// one, if the two were apart.
+    fn union(&mut self, a: usize, b: usize) -> Option<usize> {
         let (ra, rb) = (self.find(a), self.find(b));
-        if ra != rb {
-            let (low, high) = (ra.min(rb), ra.max(rb));
-            self.parent[high] = (low + self.offset) as u32;
+        if ra == rb {
+            return None;
         }
+        let (low, high) = (ra.min(rb), ra.max(rb));
+        self.parent[high] = (low + self.offset) as u32;
+        Some(high)
     }
 }
 
