@@ -199,6 +199,18 @@ fn tiny_ranges_and_narrow_images_work() {
     }
     let d = run(&l, &r, &opts(8));
     assert!(mean_error(&d.disparity, 6, |_, _| 3.0) < 0.5);
+    // Narrower than the smoothing's widest tap spacing (4 px with 3 passes), and a 2-px image.
+    for (w, h) in [(3, 20), (2, 2), (5, 3)] {
+        let l = gray(w, h, |x, y| texture(x as f32, y as f32));
+        let r = gray(w, h, |x, y| texture(x as f32 + 1.0, y as f32));
+        for preset in Preset::ALL {
+            let o = StereoOptions {
+                max_disparity: 1,
+                ..StereoOptions::preset(preset)
+            };
+            run(&l, &r, &o);
+        }
+    }
 }
 
 #[test]
