@@ -164,7 +164,7 @@ pub fn estimate_residual(
                     (y / scale).min(disparity.height() - 1),
                 );
                 let d = *disparity.get(cx, cy) * scale as f32;
-                track(left, right, x, y, d)
+                track_fast(left, right, x, y, d)
             })
         })
         .collect();
@@ -174,7 +174,36 @@ pub fn estimate_residual(
     robust_plane(&shifts, w as f32 / 2.0, h as f32 / 2.0)
 }
 
+/// Pixels per side of a sample's window.
+const SIDE: usize = 2 * RADIUS + 1;
+
+/// Pixels in a sample's window.
+const N: usize = SIDE * SIDE;
+
+/// Values per stored window row: the row's `SIDE` pixels and weightless padding, so that every
+/// loop over a window runs on whole 8-lane registers.
+const LANES: usize = 8;
+
+/// A window, row by row, each row padded to [`LANES`] values.
+type Window = [f32; SIDE * LANES];
+
+/// 1 for a window's pixels, 0 for the padding.
+const PIXELS: Window = {
+    let mut mask = [0f32; SIDE * LANES];
+    let mut k = 0;
+    while k < mask.len() {
+        if k % LANES < SIDE {
+            mask[k] = 1.0;
+        }
+        k += 1;
+    }
+    mask
+};
+
+crate::avx2_variant!(fn track_fast<'a>(left: &'a Raster<u8>, right: &'a Raster<u8>, x: usize, y: usize, d: f32) -> Option<Shift> => track);
+
 /// The vertical shift of left pixel (x, y)'s window in the right view, starting at `x − d`.
+#[inline(always)]
 fn track(left: &Raster<u8>, right: &Raster<u8>, x: usize, y: usize, d: f32) -> Option<Shift> {
     let (w, h) = (right.width() as f32, right.height() as f32);
     let start = x as f32 - d;
@@ -182,16 +211,15 @@ fn track(left: &Raster<u8>, right: &Raster<u8>, x: usize, y: usize, d: f32) -> O
     if !start.is_finite() || start < reach || start > w - 1.0 - reach {
         return None;
     }
-    // Template: the left window, mean and contrast removed, and its gradients.
-    const N: usize = (2 * RADIUS + 1) * (2 * RADIUS + 1);
-    const SIDE: usize = 2 * RADIUS + 1;
-    let mut t = [0f32; N];
-    let mut gx = [0f32; N];
-    let mut gy = [0f32; N];
+    // Template: the left window, mean and contrast removed, and its gradients; their padding
+    // stays 0, so it adds nothing to any sum below.
+    let mut t: Window = [0.0; SIDE * LANES];
+    let mut gx: Window = [0.0; SIDE * LANES];
+    let mut gy: Window = [0.0; SIDE * LANES];
     // The window's rows, with one pixel more on each side for the gradients.
     let row = |j: usize| &left.row(y + j - RADIUS)[x - RADIUS - 1..x + RADIUS + 2];
     for j in 0..SIDE {
-        for (v, &p) in t[j * SIDE..(j + 1) * SIDE].iter_mut().zip(&row(j)[1..]) {
+        for (v, &p) in t[j * LANES..j * LANES + SIDE].iter_mut().zip(&row(j)[1..]) {
             *v = p as f32;
         }
     }
@@ -205,22 +233,19 @@ fn track(left: &Raster<u8>, right: &Raster<u8>, x: usize, y: usize, d: f32) -> O
     for j in 0..SIDE {
         let (r, up, down) = (row(j), above(j), below(j));
         for i in 0..SIDE {
-            gx[j * SIDE + i] = 0.5 * (r[i + 2] as f32 - r[i] as f32);
-            gy[j * SIDE + i] = 0.5 * (down[i] as f32 - up[i] as f32);
+            gx[j * LANES + i] = 0.5 * (r[i + 2] as f32 - r[i] as f32);
+            gy[j * LANES + i] = 0.5 * (down[i] as f32 - up[i] as f32);
         }
     }
-    for (v, (a, b)) in t.iter_mut().zip(gx.iter_mut().zip(gy.iter_mut())) {
-        *v = (*v - mean) / sd;
-        *a /= sd;
-        *b /= sd;
+    for k in 0..t.len() {
+        t[k] = (t[k] - mean) / sd * PIXELS[k];
+        gx[k] /= sd;
+        gy[k] /= sd;
     }
     // Hessian of the template (constant in the inverse compositional form).
-    let (mut hxx, mut hxy, mut hyy) = (0f32, 0f32, 0f32);
-    for (a, b) in gx.iter().zip(&gy) {
-        hxx += a * a;
-        hxy += a * b;
-        hyy += b * b;
-    }
+    let hxx = lane_sum(&std::array::from_fn(|k| gx[k] * gx[k]));
+    let hxy = lane_sum(&std::array::from_fn(|k| gx[k] * gy[k]));
+    let hyy = lane_sum(&std::array::from_fn(|k| gy[k] * gy[k]));
     let det = hxx * hyy - hxy * hxy;
     // Texture in both directions: the smaller eigenvalue of the Hessian.
     let trace = hxx + hyy;
@@ -229,31 +254,30 @@ fn track(left: &Raster<u8>, right: &Raster<u8>, x: usize, y: usize, d: f32) -> O
         return None;
     }
     let (mut u, mut v) = (start, y as f32);
-    let mut r = [0f32; N];
+    let mut r: Window = [0.0; SIDE * LANES];
     for _ in 0..ITERATIONS {
-        // One fraction for the whole window: bilinear weights once, then rows read as slices.
+        // One fraction for the whole window: bilinear weights once, then rows read as slices
+        // (the padding lane too: `reach` keeps its pixel inside the image).
         let (x0, y0) = (u.floor(), v.floor());
         let (fx, fy) = (u - x0, v - y0);
         let (x0, y0) = (x0 as usize - RADIUS, y0 as usize - RADIUS);
         for j in 0..SIDE {
-            let top = &right.row(y0 + j)[x0..x0 + SIDE + 1];
-            let bottom = &right.row(y0 + j + 1)[x0..x0 + SIDE + 1];
-            for i in 0..SIDE {
+            let top = &right.row(y0 + j)[x0..x0 + LANES + 1];
+            let bottom = &right.row(y0 + j + 1)[x0..x0 + LANES + 1];
+            for i in 0..LANES {
                 let a = top[i] as f32 + fx * (top[i + 1] as f32 - top[i] as f32);
                 let b = bottom[i] as f32 + fx * (bottom[i + 1] as f32 - bottom[i] as f32);
-                r[j * SIDE + i] = a + fy * (b - a);
+                r[j * LANES + i] = (a + fy * (b - a)) * PIXELS[j * LANES + i];
             }
         }
         let (rm, rs) = mean_sd(&r);
         if rs < 1.0 {
             return None;
         }
-        let (mut ex, mut ey) = (0f32, 0f32);
-        for i in 0..N {
-            let e = (r[i] - rm) / rs - t[i];
-            ex += gx[i] * e;
-            ey += gy[i] * e;
-        }
+        // The padding's error is multiplied by gradients of 0.
+        let e: Window = std::array::from_fn(|k| (r[k] - rm) / rs - t[k]);
+        let ex = lane_sum(&std::array::from_fn(|k| gx[k] * e[k]));
+        let ey = lane_sum(&std::array::from_fn(|k| gy[k] * e[k]));
         let du = (hyy * ex - hxy * ey) / det;
         let dv = (hxx * ey - hxy * ex) / det;
         if !(du.is_finite() && dv.is_finite()) {
@@ -282,11 +306,24 @@ fn track(left: &Raster<u8>, right: &Raster<u8>, x: usize, y: usize, d: f32) -> O
     None
 }
 
-/// Mean and standard deviation.
-fn mean_sd(v: &[f32]) -> (f32, f32) {
-    let n = v.len() as f32;
-    let mean = v.iter().sum::<f32>() / n;
-    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f32>() / n;
+/// The sum of a window's values, lane by lane over the rows and then across the lanes: a sum the
+/// compiler keeps in vector registers (it may not reorder a plain running sum of floats).
+#[inline(always)]
+fn lane_sum(v: &Window) -> f32 {
+    let mut lanes = [0f32; LANES];
+    for row in v.chunks_exact(LANES) {
+        for (l, &x) in lanes.iter_mut().zip(row) {
+            *l += x;
+        }
+    }
+    lanes.iter().sum()
+}
+
+/// Mean and standard deviation of a window's pixels (its padding must be 0).
+#[inline(always)]
+fn mean_sd(v: &Window) -> (f32, f32) {
+    let mean = lane_sum(v) / N as f32;
+    let var = lane_sum(&std::array::from_fn(|k| (v[k] - mean).powi(2) * PIXELS[k])) / N as f32;
     (mean, var.sqrt())
 }
 
