@@ -229,11 +229,22 @@ fn grey(view: &ImageView) -> Raster<u8> {
         return view.to_luma().map(|&v| to_u8(v));
     };
     let (w, h) = (view.width() as usize, view.height() as usize);
+    // Each channel's term of the luma sum per code value (the luma of that channel alone),
+    // looked up instead of computed: `rec709_luma`'s products exactly, added in its order, so
+    // the grey levels are the same.
+    const S: f32 = 1.0 / 255.0;
+    let term = |channel: usize| -> [f32; 256] {
+        std::array::from_fn(|v| {
+            let mut rgb = [0.0; 3];
+            rgb[channel] = v as f32 * S;
+            rec709_luma(rgb)
+        })
+    };
+    let [tr, tg, tb] = [0, 1, 2].map(term);
     let mut out = vec![0u8; w * h];
     out.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        const S: f32 = 1.0 / 255.0;
         for (o, px) in out.iter_mut().zip(view.row(y as u32).chunks_exact(bytes)) {
-            *o = to_u8(rec709_luma([px[r], px[g], px[b]].map(|v| v as f32 * S)));
+            *o = to_u8(tr[px[r] as usize] + tg[px[g] as usize] + tb[px[b] as usize]);
         }
     });
     Raster::from_vec(w, h, out)

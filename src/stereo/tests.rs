@@ -540,6 +540,16 @@ fn grey_levels_of_every_8_bit_layout_match_the_luma_of_the_photo() {
     let first = view(&rgba, PixelFormat::Rgba8, 4);
     assert_eq!(view(&rgb, PixelFormat::Rgb8, 3), first);
     assert_eq!(view(&bgra, PixelFormat::Bgra8, 4), first);
+    // Every red and green code value against each other, blue varying: the looked-up terms
+    // give the grey levels of the photo's luma.
+    let all: Vec<u8> = (0..256 * 256)
+        .flat_map(|i| [(i % 256) as u8, (i / 256) as u8, (i * 7 % 251) as u8])
+        .collect();
+    let view = ImageView::new(&all, 256, 256, 256 * 3, PixelFormat::Rgb8).unwrap();
+    let want = view
+        .to_luma()
+        .map(|&v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
+    assert_eq!(grey(&view), want);
 }
 
 #[test]
