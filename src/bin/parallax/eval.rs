@@ -56,7 +56,8 @@ pub struct StereoArgs {
     #[arg(long, default_value = "balanced", value_name = "P|all")]
     preset: String,
     /// Also run a peer on the same pairs: `opencv` (StereoSGBM 3-way and HH4, from a Python
-    /// virtual environment created on first use under ~/.cache/parallax).
+    /// virtual environment created on first use under ~/.cache/parallax), on each pair right
+    /// after our own matches of it.
     #[arg(long, value_name = "PEER")]
     peer: Option<String>,
     /// Where the tables, plot and peer outputs go.
@@ -243,8 +244,6 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
         o.validate(u32::MAX)?;
         configs.push((format!("options {spec}"), "from --options".into(), o));
     }
-    let mut rows = Vec::new();
-
     let mut kept = stereo::StereoMatcher::new();
     let mut match_pair = |s: &Scene, o: &StereoOptions| {
         if args.cold {
@@ -261,19 +260,34 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
         };
         match_pair(s, &o)?;
     }
+    let peer = match args.peer.as_deref() {
+        None => false,
+        Some("opencv") => true,
+        Some(other) => {
+            return Err(Error::invalid(format!(
+                "unknown peer {other:?} (expected opencv)"
+            )))
+        }
+    };
     let bar = args
         .common
         .progress((configs.len() * scenes.len()) as u64, "matching");
-    for (name, description, base) in &configs {
-        let mut row = Row {
+    let mut rows: Vec<Row> = configs
+        .iter()
+        .map(|(name, description, _)| Row {
             name: name.clone(),
             description: description.clone(),
             scores: vec![],
             ms: vec![],
             peer: false,
-        };
-        let mut stages: Vec<(String, f64)> = Vec::new();
-        for s in &scenes {
+        })
+        .collect();
+    let mut stages: Vec<Vec<(String, f64)>> = vec![Vec::new(); configs.len()];
+    let mut peer_rows: Vec<Row> = Vec::new();
+    // Scene by scene, the peer right after our matches of the same pair, so that both are timed
+    // in the same minute of a machine whose speed drifts.
+    for s in &scenes {
+        for (c, (name, _, base)) in configs.iter().enumerate() {
             let o = StereoOptions {
                 max_disparity: ndisp(s).saturating_sub(1).max(1),
                 ..base.clone()
@@ -288,9 +302,10 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
             };
             let total = median(runs.iter().map(|d| d.stats.total_ms).collect());
             let d = &runs[0];
-            row.scores
+            rows[c]
+                .scores
                 .push(score(&d.disparity, &s.truth, &s.mask, ndisp(s) as f32)?);
-            row.ms.push(total);
+            rows[c].ms.push(total);
             for (stage, _) in &d.stats.timings {
                 let ms = median(
                     runs.iter()
@@ -303,9 +318,9 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
                         })
                         .collect(),
                 );
-                match stages.iter_mut().find(|(n, _)| n == stage) {
+                match stages[c].iter_mut().find(|(n, _)| n == stage) {
                     Some(e) => e.1 += ms,
-                    None => stages.push((stage.clone(), ms)),
+                    None => stages[c].push((stage.clone(), ms)),
                 }
             }
             trace.record(
@@ -316,7 +331,30 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
             );
             bar.inc(1);
         }
-        if !args.common.quiet {
+        if peer {
+            let scene_rows =
+                trace.time(&format!("peer.opencv[{}]", s.name), "--peer opencv", |_| {
+                    run_opencv(
+                        std::slice::from_ref(s),
+                        &args.out_dir,
+                        args.repeat,
+                        args.common.quiet,
+                    )
+                })?;
+            for r in scene_rows {
+                match peer_rows.iter_mut().find(|p| p.name == r.name) {
+                    Some(p) => {
+                        p.scores.extend(r.scores);
+                        p.ms.extend(r.ms);
+                    }
+                    None => peer_rows.push(r),
+                }
+            }
+        }
+    }
+    bar.finish_and_clear();
+    if !args.common.quiet {
+        for ((name, _, _), stages) in configs.iter().zip(&stages) {
             let list: Vec<String> = stages
                 .iter()
                 .map(|(n, ms)| format!("{n} {ms:.0} ms"))
@@ -326,24 +364,8 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
                 list.join(", ")
             );
         }
-        rows.push(row);
     }
-    bar.finish_and_clear();
-
-    match args.peer.as_deref() {
-        None => {}
-        Some("opencv") => {
-            let peer_rows = trace.time("peer.opencv", "--peer opencv", |_| {
-                run_opencv(&scenes, &args.out_dir, args.repeat, args.common.quiet)
-            })?;
-            rows.extend(peer_rows);
-        }
-        Some(other) => {
-            return Err(Error::invalid(format!(
-                "unknown peer {other:?} (expected opencv)"
-            )))
-        }
-    }
+    rows.extend(peer_rows);
 
     let report = render_report(&rows, &scenes);
     print!("{}", report.summary);
