@@ -184,6 +184,10 @@ const N: usize = SIDE * SIDE;
 /// loop over a window runs on whole 8-lane registers.
 const LANES: usize = 8;
 
+// A row and its padding fit the lanes, and the padding's pixel (read for the bilinear weights
+// of the whole row) lies within the reach that `track` keeps from the image's borders.
+const _: () = assert!(SIDE < LANES && LANES - RADIUS <= RADIUS + 2);
+
 /// A window, row by row, each row padded to [`LANES`] values.
 type Window = [f32; SIDE * LANES];
 
@@ -261,6 +265,11 @@ fn track(left: &Raster<u8>, right: &Raster<u8>, x: usize, y: usize, d: f32) -> O
         let (x0, y0) = (u.floor(), v.floor());
         let (fx, fy) = (u - x0, v - y0);
         let (x0, y0) = (x0 as usize - RADIUS, y0 as usize - RADIUS);
+        // The reach checks above are in `f32`; these are exact (and hold unless an image is
+        // wider or taller than `f32` counts pixels exactly).
+        if x0 + LANES + 1 > right.width() || y0 + SIDE + 1 > right.height() {
+            return None;
+        }
         for j in 0..SIDE {
             let top = &right.row(y0 + j)[x0..x0 + LANES + 1];
             let bottom = &right.row(y0 + j + 1)[x0..x0 + LANES + 1];

@@ -8,9 +8,9 @@
 //! (measured in docs/stereo-eval.md, stop 23). Elsewhere, or where the system has transparent
 //! huge pages off, the buffer is an ordinary `Vec`.
 //!
-//! A [`Workspace`] keeps those buffers between matches (see [`super::StereoMatcher`]): a host
-//! matching a stream of frames then neither allocates them again nor has the kernel zero their
-//! pages, some 20 MB per 0.35 MP frame.
+//! A [`Workspace`] can keep those buffers between matches (see [`super::StereoMatcher`]): a
+//! host matching a stream of frames then neither allocates them again nor has the kernel zero
+//! their pages, some 20 MB per 0.35 MP frame.
 
 /// A transparent huge page on x86-64 and most aarch64 kernels, bytes.
 const HUGE_PAGE: usize = 2 << 20;
@@ -36,25 +36,36 @@ pub fn reuse<T: bytemuck::Zeroable + Clone>(mut spare: Vec<T>, len: usize) -> Ve
     spare
 }
 
-/// The matcher's large buffers, kept from one match to the next. Each is written before it is
-/// read (so stale values from an earlier pair never reach a result); an empty `Vec` until first
-/// used.
+/// The matcher's large buffers, made from memory given back by an earlier step, level or match.
+/// Each is written before it is read (so stale values from an earlier pair never reach a
+/// result); an empty `Vec` until first used. The half-size level and the full-size level run one
+/// after the other and share the buffers, so a kept workspace holds each buffer at the size of
+/// the larger level's.
 #[derive(Debug, Default)]
 pub struct Workspace {
+    /// Whether buffers given back are kept for the next use; `false` (the default, a one-off
+    /// match) drops them at once, so that the peak memory is that of fresh buffers.
+    keep: bool,
     /// The aggregated costs `S` ([`super::sgm::Aggregated::s`]).
-    pub aggregated: Vec<u16>,
+    pub(crate) aggregated: Vec<u16>,
     /// The per-pixel sums of the paths' minima ([`super::sgm::Aggregated::min_sum`]).
-    pub min_sum: Vec<u16>,
+    pub(crate) min_sum: Vec<u16>,
     /// The stored cost volume of the aggregation.
-    pub costs: Vec<u8>,
+    pub(crate) costs: Vec<u8>,
     /// The census transforms of the left and the right view.
-    pub census: [Vec<u64>; 2],
-    /// The half-size level's own buffers.
-    pub coarse: Option<Box<Workspace>>,
+    pub(crate) census: [Vec<u64>; 2],
 }
 
 impl Workspace {
-    /// Bytes held, the half-size level's included.
+    /// A workspace that keeps what it is given back, for the next match.
+    pub fn keeping() -> Self {
+        Workspace {
+            keep: true,
+            ..Default::default()
+        }
+    }
+
+    /// Bytes held.
     pub fn bytes(&self) -> usize {
         fn held<T>(v: &Vec<T>) -> usize {
             v.capacity() * std::mem::size_of::<T>()
@@ -63,7 +74,27 @@ impl Workspace {
             + held(&self.min_sum)
             + held(&self.costs)
             + self.census.iter().map(held).sum::<usize>()
-            + self.coarse.as_ref().map_or(0, |c| c.bytes())
+    }
+
+    /// Takes back `S` and `min_sum` (kept, or dropped).
+    pub fn give_back_aggregated(&mut self, aggregated: Vec<u16>, min_sum: Vec<u16>) {
+        if self.keep {
+            (self.aggregated, self.min_sum) = (aggregated, min_sum);
+        }
+    }
+
+    /// Takes back the cost volume (kept, or dropped).
+    pub fn give_back_costs(&mut self, costs: Vec<u8>) {
+        if self.keep {
+            self.costs = costs;
+        }
+    }
+
+    /// Takes back the census transforms (kept, or dropped).
+    pub fn give_back_census(&mut self, census: [Vec<u64>; 2]) {
+        if self.keep {
+            self.census = census;
+        }
     }
 }
 

@@ -424,7 +424,7 @@ pub fn smooth(
                     0..0
                 };
                 if !interior.is_empty() {
-                    let taps = Interior {
+                    let interior_taps = Interior {
                         centre,
                         centre_rise: rise,
                         centre_fall: fall,
@@ -440,7 +440,7 @@ pub fn smooth(
                         spacing: step,
                         max_jump: opts.max_jump,
                     };
-                    smooth_interior_fast(&taps, interior.start, interior.end, out);
+                    smooth_interior_fast(&interior_taps, interior.start, interior.end, out);
                 }
                 let borders = if interior.is_empty() {
                     [0..w, 0..0]

@@ -118,22 +118,33 @@ pub fn match_pair(
     right: &ImageView,
     options: &StereoOptions,
 ) -> Result<Disparity> {
-    StereoMatcher::new().match_pair(left, right, options)
+    // A workspace that keeps nothing: each buffer is freed as soon as it is used, as it was
+    // before matchers kept theirs.
+    match_views(left, right, options, &mut buffer::Workspace::default())
 }
 
-/// A matcher that keeps its large working buffers (the aggregated costs, the stored cost volume
-/// and the census transforms, of the full-size and the half-size level) from one match to the
-/// next, as a host matching the frames of a stereo camera wants: a pair of the same size (or
-/// smaller) then needs no new memory, and the kernel does not zero fresh pages for it, which
-/// costs some 20 MB of writes per 0.35 MP frame. Results are the same as [`match_pair`]'s, bit
-/// for bit.
+/// A matcher that keeps its large working buffers from one match to the next, as a host
+/// matching the frames of a stereo camera wants: the aggregated costs, the stored cost volume
+/// and the census transforms (shared by the half-size and the full-size level) are not
+/// allocated again for a pair no larger than the last, and the kernel does not zero fresh pages
+/// for them, some 20 MB of writes per 0.35 MP frame. The smaller per-pixel buffers (grey
+/// images, disparity, fill and smoothing) are still allocated per match. Results are the same
+/// as [`match_pair`]'s, bit for bit.
 ///
-/// Between matches it holds [`StereoMatcher::retained_bytes`] (about 3 bytes per pixel and
-/// disparity searched by the full-size level, less with a narrow coarse-to-fine window);
-/// [`StereoMatcher::release`] frees them.
-#[derive(Debug, Default)]
+/// Between matches it holds [`StereoMatcher::retained_bytes`]: 3 bytes per pixel and disparity
+/// searched by the level that searches the most (2 without a stored cost volume) and 18 bytes
+/// per pixel, at the largest size matched so far; [`StereoMatcher::release`] frees them.
+#[derive(Debug)]
 pub struct StereoMatcher {
     workspace: buffer::Workspace,
+}
+
+impl Default for StereoMatcher {
+    fn default() -> Self {
+        StereoMatcher {
+            workspace: buffer::Workspace::keeping(),
+        }
+    }
 }
 
 impl StereoMatcher {
@@ -149,7 +160,7 @@ impl StereoMatcher {
 
     /// Frees the memory kept between matches.
     pub fn release(&mut self) {
-        self.workspace = buffer::Workspace::default();
+        self.workspace = buffer::Workspace::keeping();
     }
 
     /// As [`match_pair`], in this matcher's memory.
@@ -253,7 +264,7 @@ fn grey(view: &ImageView) -> Raster<u8> {
 /// The whole pipeline on grey images; returns (disparity, confidence).
 /// `full_search_cells`: pixels × disparities of the full-size search, whose 2 bytes each bound the
 /// working memory (a coarse level uses its parent's). The large buffers are made in `workspace`'s
-/// memory and left there.
+/// memory and given back to it.
 pub(crate) fn match_grey(
     l: &Raster<u8>,
     r: &Raster<u8>,
@@ -295,14 +306,13 @@ pub(crate) fn match_grey(
             ..o.clone()
         };
         let mut coarse_stats = StereoStats::default();
-        let coarse_workspace = workspace.coarse.get_or_insert_with(Default::default);
         let (coarse, _) = match_grey(
             &cl,
             &cr,
             &coarse_opts,
             full_search_cells,
             &mut coarse_stats,
-            coarse_workspace,
+            workspace,
         )?;
         let (bases, k) = if use_coarse {
             let k = o.coarse_window as usize;
@@ -429,7 +439,7 @@ pub(crate) fn match_grey(
             }
         }
     };
-    cost.recycle(&mut workspace.census);
+    cost.recycle(workspace);
 
     if o.speckle_size > 0 {
         stats.time("stereo.speckle", || {
@@ -549,10 +559,10 @@ impl<'a> Costs<'a> {
         }
     }
 
-    /// Gives the census transforms' memory back to `spare_census`, for the next match.
-    fn recycle(self, spare_census: &mut [Vec<u64>; 2]) {
+    /// Gives the census transforms' memory back to `workspace`.
+    fn recycle(self, workspace: &mut buffer::Workspace) {
         if let Costs::Census(c) = self {
-            *spare_census = c.into_buffers();
+            workspace.give_back_census(c.into_buffers());
         }
     }
 }

@@ -49,10 +49,9 @@ pub struct Aggregated {
 }
 
 impl Aggregated {
-    /// Gives `S` and `min_sum` back to `spare` for the next match.
+    /// Gives `S` and `min_sum` back to `spare`.
     pub fn recycle(self, spare: &mut Workspace) {
-        spare.aggregated = self.s;
-        spare.min_sum = self.min_sum;
+        spare.give_back_aggregated(self.s, self.min_sum);
     }
 }
 
@@ -91,7 +90,7 @@ impl Penalties {
 /// search whose memory bound leaves no room for one).
 ///
 /// `S`, `min_sum` and the volume are made in `spare`'s memory when it holds enough; the volume
-/// goes back there, `S` and `min_sum` with [`Aggregated::recycle`].
+/// is given back there, `S` and `min_sum` with [`Aggregated::recycle`].
 #[allow(clippy::too_many_arguments)]
 pub fn aggregate(
     cost: &dyn CostRows,
@@ -110,6 +109,8 @@ pub fn aggregate(
     let mut volume = if store_costs {
         buffer::reuse(std::mem::take(&mut spare.costs), w * h * k)
     } else {
+        // No volume this time: a kept one would be held beyond the memory bound.
+        spare.costs = Vec::new();
         Vec::new()
     };
     {
@@ -142,7 +143,7 @@ pub fn aggregate(
         rayon::join(|| sweep(true), || sweep(false));
     }
     if store_costs {
-        spare.costs = volume;
+        spare.give_back_costs(volume);
     }
     Aggregated {
         width: w,

@@ -2,9 +2,10 @@
 //!
 //! Regions are labelled with union–find, in horizontal strips on all threads, and counted there;
 //! then the strips are joined across their borders, where only the regions that cross a border
-//! move their counts (few, and the only serial work). Two neighbours belong together when both are valid and their
-//! disparities differ by at most the range; the relation is symmetric, so the regions are the
-//! connected components of one graph and come out the same as a flood fill's, whatever the order.
+//! move their counts (few, and the only serial work). Two neighbours belong together when both
+//! are valid and their disparities differ by at most the range; the relation is symmetric, so the
+//! regions are the connected components of one graph and come out the same as a flood fill's,
+//! whatever the order.
 
 use rayon::prelude::*;
 
@@ -32,8 +33,6 @@ pub fn remove_speckles(
             && state[q] == PixelState::Valid
             && (d[q] - d[p]).abs() <= range
     };
-    // Every pixel's parent has a smaller index than the pixel (until it is a root), so one pass
-    // in ascending order leaves each pointing straight at its root.
     let mut parent: Vec<u32> = (0..n as u32).collect();
     // Several strips a thread, so that uneven strips still share the work.
     let strip_rows = h.div_ceil(4 * rayon::current_num_threads()).max(1);
@@ -70,6 +69,8 @@ pub fn remove_speckles(
                     }
                 }
             }
+            // Every pixel's parent has a smaller index than the pixel (until it is a root), so
+            // one pass in ascending order leaves each pointing straight at its root.
             for i in 0..forest.parent.len() {
                 let root = forest.parent[forest.parent[i] as usize - forest.offset];
                 forest.parent[i] = root;
@@ -93,11 +94,14 @@ pub fn remove_speckles(
             }
         }
     }
-    let moves: Vec<(usize, u32)> = merged.iter().map(|&r| (forest.find(r), size[r])).collect();
-    for (root, count) in moves {
-        size[root] += count;
+    // A strip root that was joined is no root any more, so its count is its strip's alone; it
+    // is pointed straight at its region's root.
+    for &r in &merged {
+        let root = forest.find(r);
+        size[root] += size[r];
+        forest.parent[r] = root as u32;
     }
-    // A pixel's region: its strip root's root (a short chain, read only).
+    // A pixel's region: its strip root, or that root's root (read only).
     let parent = &parent;
     let region = |i: usize| {
         let mut r = parent[i] as usize;

@@ -252,8 +252,12 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
             kept.match_pair(&s.left.view(), &s.right.view(), o)
         }
     };
-    // Warm up (page faults, thread pool) so the first timed pair is not penalised.
-    if let Some(s) = scenes.first() {
+    // Warm up (page faults, thread pool, the kept matcher's buffers) on the largest search, so
+    // that no timed pair is the first of its size.
+    let largest = scenes
+        .iter()
+        .max_by_key(|s| s.left.width() as u64 * s.left.height() as u64 * ndisp(s) as u64);
+    if let Some(s) = largest {
         let o = StereoOptions {
             max_disparity: ndisp(s) - 1,
             ..StereoOptions::default()
