@@ -158,4 +158,19 @@ mod tests {
         assert_eq!(v.len(), 1000);
         assert!(v.iter().all(|&x| x == 0));
     }
+
+    #[test]
+    fn only_a_keeping_workspace_holds_what_it_is_given_back() {
+        let give = |ws: &mut Workspace| {
+            ws.give_back_aggregated(vec![0; 10], vec![0; 4]);
+            ws.give_back_costs(vec![0; 10]);
+            ws.give_back_census([vec![0; 4], vec![0; 4]]);
+        };
+        let mut one_off = Workspace::default();
+        give(&mut one_off);
+        assert_eq!(one_off.bytes(), 0);
+        let mut kept = Workspace::keeping();
+        give(&mut kept);
+        assert!(kept.bytes() >= 20 + 8 + 10 + 64);
+    }
 }

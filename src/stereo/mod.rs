@@ -118,8 +118,8 @@ pub fn match_pair(
     right: &ImageView,
     options: &StereoOptions,
 ) -> Result<Disparity> {
-    // A workspace that keeps nothing: each buffer is freed as soon as it is used, as it was
-    // before matchers kept theirs.
+    // A workspace that keeps nothing: each buffer is freed as soon as its step is done, which
+    // keeps the peak within the matcher's memory bound (tests/stereo_large.rs).
     match_views(left, right, options, &mut buffer::Workspace::default())
 }
 
