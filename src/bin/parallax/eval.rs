@@ -244,6 +244,15 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
         o.validate(u32::MAX)?;
         configs.push((format!("options {spec}"), "from --options".into(), o));
     }
+    let peer = match args.peer.as_deref() {
+        None => false,
+        Some("opencv") => true,
+        Some(other) => {
+            return Err(Error::invalid(format!(
+                "unknown peer {other:?} (expected opencv)"
+            )))
+        }
+    };
     let mut kept = stereo::StereoMatcher::new();
     let mut match_pair = |s: &Scene, o: &StereoOptions| {
         if args.cold {
@@ -264,15 +273,6 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
         };
         match_pair(s, &o)?;
     }
-    let peer = match args.peer.as_deref() {
-        None => false,
-        Some("opencv") => true,
-        Some(other) => {
-            return Err(Error::invalid(format!(
-                "unknown peer {other:?} (expected opencv)"
-            )))
-        }
-    };
     let bar = args
         .common
         .progress((configs.len() * scenes.len()) as u64, "matching");
