@@ -406,7 +406,6 @@ pub fn smooth(
     for pass in 0..opts.passes {
         let spacing = 1isize << pass.min(10);
         let prev = &src;
-        let step = spacing as usize;
         dst.par_chunks_mut(w).enumerate().for_each_init(
             || (vec![0f32; w], vec![0f32; w], vec![0f32; w], vec![0f32; w]),
             |(sum, weight, rise, fall), (y, out)| {
@@ -414,33 +413,26 @@ pub fn smooth(
                     *r = rise_of[g as usize];
                     *f = fall_of[g as usize];
                 }
-                let centre = &prev[y * w..(y + 1) * w];
-                // Where all nine taps lie inside the image, they are summed in one loop (in the
-                // order of the loops below, so the result is the same to the bit), and only the
-                // border pixels go tap by tap.
-                let interior = if y >= step && y + step < h {
-                    step..w.saturating_sub(step)
-                } else {
-                    0..0
+                let row = PassRow {
+                    y,
+                    w,
+                    h,
+                    spacing: spacing as usize,
+                    centre: &prev[y * w..(y + 1) * w],
+                    centre_rise: rise,
+                    centre_fall: fall,
+                    prev,
+                    reliable_rise: &reliable_rise,
+                    reliable_fall: &reliable_fall,
+                    weights: taps,
+                    max_jump: opts.max_jump,
                 };
+                // Where all nine taps lie inside the image, they are summed in one loop (in the
+                // order of `add_taps`, so the result is the same to the bit), and only the
+                // border pixels go tap by tap.
+                let interior = row.interior();
                 if !interior.is_empty() {
-                    let interior_taps = Interior {
-                        centre,
-                        centre_rise: rise,
-                        centre_fall: fall,
-                        rows: [y - step, y, y + step].map(|r| {
-                            let row = r * w..(r + 1) * w;
-                            [
-                                &prev[row.clone()],
-                                &reliable_rise[row.clone()],
-                                &reliable_fall[row],
-                            ]
-                        }),
-                        weights: taps,
-                        spacing: step,
-                        max_jump: opts.max_jump,
-                    };
-                    smooth_interior_fast(&interior_taps, interior.start, interior.end, out);
+                    smooth_interior_fast(&row, interior.start, interior.end, out);
                 }
                 let borders = if interior.is_empty() {
                     [0..w, 0..0]
@@ -451,28 +443,13 @@ pub fn smooth(
                     let (sum, weight) = (&mut sum[border.clone()], &mut weight[border.clone()]);
                     sum.fill(0.0);
                     weight.fill(0.0);
-                    add_taps(
-                        &TapRow {
-                            y,
-                            h,
-                            w,
-                            spacing,
-                            from: border.start,
-                            centre,
-                            centre_rise: rise,
-                            centre_fall: fall,
-                            prev,
-                            reliable_rise: &reliable_rise,
-                            reliable_fall: &reliable_fall,
-                            max_jump: opts.max_jump,
-                        },
-                        &taps,
-                        sum,
-                        weight,
-                    );
+                    add_taps(&row, border.start, sum, weight);
                     let out = &mut out[border.clone()];
-                    for (((o, &s), &wt), &dp) in
-                        out.iter_mut().zip(&*sum).zip(&*weight).zip(&centre[border])
+                    for (((o, &s), &wt), &dp) in out
+                        .iter_mut()
+                        .zip(&*sum)
+                        .zip(&*weight)
+                        .zip(&row.centre[border])
                     {
                         *o = if wt > 1e-12 { s / wt } else { dp };
                     }
@@ -484,54 +461,59 @@ pub fn smooth(
     disparity.pixels_mut().copy_from_slice(&src);
 }
 
-/// The centre row's values and the whole image's, for [`add_taps`] on the pixels `from..` of
-/// row `y` (as many as its `sum` holds).
-struct TapRow<'a> {
+/// One row `y` of a smoothing pass: the centre row's values and the whole image's, the tap
+/// weights (per row and per column of the 3×3 taps) and their spacing.
+struct PassRow<'a> {
     y: usize,
-    h: usize,
     w: usize,
-    spacing: isize,
-    from: usize,
+    h: usize,
+    spacing: usize,
+    /// The row's disparities from the previous pass.
     centre: &'a [f32],
+    /// `e^(I/σ)` and `e^(−I/σ)` of the row's grey levels.
     centre_rise: &'a [f32],
     centre_fall: &'a [f32],
+    /// The whole previous pass.
     prev: &'a [f32],
+    /// `e^(±I/σ)` of every pixel times its reliability.
     reliable_rise: &'a [f32],
     reliable_fall: &'a [f32],
+    weights: [f32; 3],
     max_jump: f32,
 }
 
-/// Adds the nine taps of a run of pixels of one row tap by tap, each over the pixels it has
-/// inside the image.
-fn add_taps(row: &TapRow<'_>, taps: &[f32; 3], sum: &mut [f32], weight: &mut [f32]) {
-    let TapRow {
-        y,
-        h,
-        w,
-        spacing,
-        from,
-        centre,
-        centre_rise: rise,
-        centre_fall: fall,
-        prev,
-        reliable_rise,
-        reliable_fall,
-        max_jump,
-    } = *row;
+impl PassRow<'_> {
+    /// The row's pixels whose nine taps all lie inside the image (empty on the first and last
+    /// `spacing` rows).
+    fn interior(&self) -> std::ops::Range<usize> {
+        let s = self.spacing;
+        if self.y >= s && self.y + s < self.h {
+            s..self.w.saturating_sub(s)
+        } else {
+            0..0
+        }
+    }
+}
+
+/// Adds the nine taps of the pixels `from..from + sum.len()` of a row tap by tap, each over the
+/// pixels it has inside the image.
+fn add_taps(row: &PassRow<'_>, from: usize, sum: &mut [f32], weight: &mut [f32]) {
+    let PassRow { y, w, h, .. } = *row;
+    let spacing = row.spacing as isize;
     let to = from + sum.len();
     // Tap by tap over the run: no bounds logic in the inner loop.
-    for (j, ty) in taps.iter().enumerate() {
+    for (j, ty) in row.weights.iter().enumerate() {
         let qy = y as isize + (j as isize - 1) * spacing;
         if qy < 0 || qy >= h as isize {
             continue;
         }
-        let row = qy as usize * w..(qy as usize + 1) * w;
+        let image_row = qy as usize * w..(qy as usize + 1) * w;
         let (drow, rrow, frow) = (
-            &prev[row.clone()],
-            &reliable_rise[row.clone()],
-            &reliable_fall[row],
+            &row.prev[image_row.clone()],
+            &row.reliable_rise[image_row.clone()],
+            &row.reliable_fall[image_row],
         );
-        for (i, tx) in taps.iter().enumerate() {
+        for (i, tx) in row.weights.iter().enumerate() {
             let dx = (i as isize - 1) * spacing;
             // The run's pixels whose neighbour at dx lies inside the row; none on a row
             // narrower than the tap's spacing.
@@ -543,14 +525,14 @@ fn add_taps(row: &TapRow<'_>, taps: &[f32; 3], sum: &mut [f32], weight: &mut [f3
             let q0 = (lo as isize + dx) as usize;
             let n = hi - lo;
             let tap = Tap {
-                centre: &centre[lo..hi],
-                centre_rise: &rise[lo..hi],
-                centre_fall: &fall[lo..hi],
+                centre: &row.centre[lo..hi],
+                centre_rise: &row.centre_rise[lo..hi],
+                centre_fall: &row.centre_fall[lo..hi],
                 disparity: &drow[q0..q0 + n],
                 reliable_rise: &rrow[q0..q0 + n],
                 reliable_fall: &frow[q0..q0 + n],
                 weight: tx * ty,
-                max_jump,
+                max_jump: row.max_jump,
             };
             add_tap_fast(
                 &tap,
@@ -561,44 +543,34 @@ fn add_taps(row: &TapRow<'_>, taps: &[f32; 3], sum: &mut [f32], weight: &mut [f3
     }
 }
 
-/// The nine taps of the pixels whose neighbours all lie inside the image: the centre row's
-/// values, and the disparities and reliable grey factors of the rows `spacing` above, at and
-/// below it.
-struct Interior<'a> {
-    centre: &'a [f32],
-    centre_rise: &'a [f32],
-    centre_fall: &'a [f32],
-    /// Per tap row: disparity, `reliable_rise`, `reliable_fall`.
-    rows: [[&'a [f32]; 3]; 3],
-    weights: [f32; 3],
-    spacing: usize,
-    max_jump: f32,
-}
+crate::avx2_variant!(fn smooth_interior_fast<'a, 'b>(row: &'b PassRow<'a>, from: usize, to: usize, out: &'b mut [f32]) => smooth_interior);
 
-crate::avx2_variant!(fn smooth_interior_fast<'a, 'b>(taps: &'b Interior<'a>, from: usize, to: usize, out: &'b mut [f32]) => smooth_interior);
-
-/// The smoothed values of pixels `from..to` (all nine taps inside the image) into `out`, in one
-/// pass: the same sums as [`add_tap`] tap by tap, in the same order.
+/// The smoothed values of pixels `from..to` of the row's interior ([`PassRow::interior`]) into
+/// `out`, in one pass: the same sums as [`add_taps`], in the same order.
 #[inline(always)]
-fn smooth_interior(taps: &Interior<'_>, from: usize, to: usize, out: &mut [f32]) {
-    let (n, s) = (to - from, taps.spacing);
-    let centre = &taps.centre[from..to];
-    let rise_p = &taps.centre_rise[from..to];
-    let fall_p = &taps.centre_fall[from..to];
+fn smooth_interior(row: &PassRow<'_>, from: usize, to: usize, out: &mut [f32]) {
+    let (n, s, w) = (to - from, row.spacing, row.w);
+    let centre = &row.centre[from..to];
+    let rise_p = &row.centre_rise[from..to];
+    let fall_p = &row.centre_fall[from..to];
     let out = &mut out[from..to];
-    // Tap (j, i) reads row j at an offset of (i − 1)·spacing: each of its three inputs as a
-    // slice of the run's length, so that the loop has no bounds checks.
-    let inputs: [[[&[f32]; 3]; 3]; 3] = taps
-        .rows
-        .map(|row| [0, 1, 2].map(|i| row.map(|v| &v[from + i * s - s..to + i * s - s][..n])));
+    // Tap (j, i) reads row y + (j − 1)·spacing at an offset of (i − 1)·spacing: each of its
+    // three inputs as a slice of the run's length, so that the loop has no bounds checks.
+    let inputs: [[[&[f32]; 3]; 3]; 3] = [0, 1, 2].map(|j| {
+        let start = (row.y + j * s - s) * w + from;
+        [0, 1, 2].map(|i| {
+            let at = start + i * s - s;
+            [row.prev, row.reliable_rise, row.reliable_fall].map(|v| &v[at..at + n])
+        })
+    });
     for x in 0..n {
         let dp = centre[x];
         let (rp, fp) = (rise_p[x], fall_p[x]);
         let (mut sum, mut weight) = (0f32, 0f32);
-        for (row, ty) in inputs.iter().zip(taps.weights) {
-            for (tap, tx) in row.iter().zip(taps.weights) {
+        for (taps_of_row, ty) in inputs.iter().zip(row.weights) {
+            for (tap, tx) in taps_of_row.iter().zip(row.weights) {
                 let (dq, rq, fq) = (tap[0][x], tap[1][x], tap[2][x]);
-                let near = ((dq - dp).abs() <= taps.max_jump) as u32 as f32;
+                let near = ((dq - dp).abs() <= row.max_jump) as u32 as f32;
                 let wq = near * (tx * ty) * (rq * fp).min(fq * rp);
                 sum += wq * dq;
                 weight += wq;
