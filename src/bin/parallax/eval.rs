@@ -245,8 +245,8 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
         configs.push((format!("options {spec}"), "from --options".into(), o));
     }
     let peer = match args.peer.as_deref() {
-        None => false,
-        Some("opencv") => true,
+        None => None,
+        Some("opencv") => Some(OpenCvPeer::prepare(args.common.quiet)?),
         Some(other) => {
             return Err(Error::invalid(format!(
                 "unknown peer {other:?} (expected opencv)"
@@ -335,15 +335,10 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
             );
             bar.inc(1);
         }
-        if peer {
+        if let Some(peer) = &peer {
             let scene_rows =
                 trace.time(&format!("peer.opencv[{}]", s.name), "--peer opencv", |_| {
-                    run_opencv(
-                        std::slice::from_ref(s),
-                        &args.out_dir,
-                        args.repeat,
-                        args.common.quiet,
-                    )
+                    peer.run(std::slice::from_ref(s), &args.out_dir, args.repeat)
                 })?;
             for r in scene_rows {
                 match peer_rows.iter_mut().find(|p| p.name == r.name) {
@@ -398,110 +393,133 @@ fn run_stereo(args: StereoArgs) -> Result<()> {
 }
 
 /// Creates (once) a virtual environment with OpenCV and runs `scripts/opencv_sgbm.py` in it.
-fn run_opencv(scenes: &[Scene], out_dir: &Path, repeat: u32, quiet: bool) -> Result<Vec<Row>> {
-    let cache = std::env::var_os("XDG_CACHE_HOME")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
-        .unwrap_or_else(|| PathBuf::from("target"))
-        .join("parallax");
-    let venv = cache.join("opencv-venv");
-    let python = venv.join("bin").join("python");
-    let fail =
-        |what: &str, detail: String| Error::NotAvailable(format!("OpenCV peer: {what}: {detail}"));
-    let run = |cmd: &mut Command, what: &str| -> Result<std::process::Output> {
-        let out = cmd.output().map_err(|e| fail(what, e.to_string()))?;
-        if !out.status.success() {
-            return Err(fail(
-                what,
-                String::from_utf8_lossy(&out.stderr).trim().to_string(),
+/// OpenCV's StereoSGBM as the peer: a Python virtual environment with opencv-python-headless
+/// (made on first use) and the script that runs it.
+struct OpenCvPeer {
+    python: PathBuf,
+    script: PathBuf,
+}
+
+fn peer_error(what: &str, detail: String) -> Error {
+    Error::NotAvailable(format!("OpenCV peer: {what}: {detail}"))
+}
+
+/// Runs `cmd`; its output, or an error with its stderr.
+fn run_command(cmd: &mut Command, what: &str) -> Result<std::process::Output> {
+    let out = cmd.output().map_err(|e| peer_error(what, e.to_string()))?;
+    if !out.status.success() {
+        return Err(peer_error(
+            what,
+            String::from_utf8_lossy(&out.stderr).trim().to_string(),
+        ));
+    }
+    Ok(out)
+}
+
+impl OpenCvPeer {
+    /// The environment under the user's cache folder (created when missing) and the script
+    /// written next to it; once per run, before anything is timed.
+    fn prepare(quiet: bool) -> Result<Self> {
+        let cache = std::env::var_os("XDG_CACHE_HOME")
+            .map(PathBuf::from)
+            .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
+            .unwrap_or_else(|| PathBuf::from("target"))
+            .join("parallax");
+        let venv = cache.join("opencv-venv");
+        let python = venv.join("bin").join("python");
+        if !python.is_file() {
+            if !quiet {
+                eprintln!(
+                    "parallax: creating {} with opencv-python-headless (first use only)",
+                    venv.display()
+                );
+            }
+            std::fs::create_dir_all(&cache).map_err(|e| Error::io(&cache, e))?;
+            run_command(
+                Command::new("python3").args(["-m", "venv"]).arg(&venv),
+                "python3 -m venv",
+            )?;
+            run_command(
+                Command::new(&python).args([
+                    "-m",
+                    "pip",
+                    "install",
+                    "--quiet",
+                    "opencv-python-headless",
+                    "numpy",
+                ]),
+                "pip install opencv-python-headless numpy",
+            )?;
+        }
+        let script = cache.join("opencv_sgbm.py");
+        std::fs::write(&script, include_str!("../../../scripts/opencv_sgbm.py"))
+            .map_err(|e| Error::io(&script, e))?;
+        Ok(OpenCvPeer { python, script })
+    }
+
+    /// StereoSGBM's rows (3-way and HH4) on `scenes`, each time the median of `repeat` calls.
+    fn run(&self, scenes: &[Scene], out_dir: &Path, repeat: u32) -> Result<Vec<Row>> {
+        let peer_dir = out_dir.join("opencv");
+        let out = run_command(
+            Command::new(&self.python)
+                .arg(&self.script)
+                .args(["--repeat", &repeat.max(1).to_string()])
+                .arg(&peer_dir)
+                .args(scenes.iter().map(|s| s.dir.as_os_str())),
+            "running opencv_sgbm.py",
+        )?;
+        let mut rows: Vec<Row> = Vec::new();
+        // The script's first line names the OpenCV release.
+        let mut version = String::from("version unknown");
+        for line in String::from_utf8_lossy(&out.stdout).lines() {
+            let v: serde_json::Value = serde_json::from_str(line)
+                .map_err(|e| peer_error("bad output line", format!("{line}: {e}")))?;
+            if let Some(v) = v["opencv"].as_str() {
+                version = v.to_string();
+                continue;
+            }
+            let (Some(scene), Some(mode), Some(ms), Some(pfm)) = (
+                v["scene"].as_str(),
+                v["mode"].as_str(),
+                v["ms"].as_f64(),
+                v["pfm"].as_str(),
+            ) else {
+                return Err(peer_error("bad output line", line.to_string()));
+            };
+            let s = scenes
+                .iter()
+                .find(|s| s.name == scene)
+                .ok_or_else(|| peer_error("unknown scene", scene.to_string()))?;
+            let disparity = Raster::read_pfm(pfm, &ImageLimits::default())?;
+            let name = format!("opencv {mode}");
+            let idx = match rows.iter().position(|r| r.name == name) {
+                Some(i) => i,
+                None => {
+                    rows.push(Row {
+                        name: name.clone(),
+                        description: format!(
+                            "StereoSGBM MODE_{mode} (OpenCV {version}), README parameters"
+                        ),
+                        scores: vec![],
+                        ms: vec![],
+                        peer: true,
+                    });
+                    rows.len() - 1
+                }
+            };
+            rows[idx]
+                .scores
+                .push(score(&disparity, &s.truth, &s.mask, ndisp(s) as f32)?);
+            rows[idx].ms.push(ms);
+        }
+        if rows.iter().any(|r| r.scores.len() != scenes.len()) || rows.is_empty() {
+            return Err(peer_error(
+                "incomplete output",
+                format!("{} rows", rows.len()),
             ));
         }
-        Ok(out)
-    };
-    if !python.is_file() {
-        if !quiet {
-            eprintln!(
-                "parallax: creating {} with opencv-python-headless (first use only)",
-                venv.display()
-            );
-        }
-        std::fs::create_dir_all(&cache).map_err(|e| Error::io(&cache, e))?;
-        run(
-            Command::new("python3").args(["-m", "venv"]).arg(&venv),
-            "python3 -m venv",
-        )?;
-        run(
-            Command::new(&python).args([
-                "-m",
-                "pip",
-                "install",
-                "--quiet",
-                "opencv-python-headless",
-                "numpy",
-            ]),
-            "pip install opencv-python-headless numpy",
-        )?;
+        Ok(rows)
     }
-    let script = cache.join("opencv_sgbm.py");
-    std::fs::write(&script, include_str!("../../../scripts/opencv_sgbm.py"))
-        .map_err(|e| Error::io(&script, e))?;
-    let peer_dir = out_dir.join("opencv");
-    let out = run(
-        Command::new(&python)
-            .arg(&script)
-            .args(["--repeat", &repeat.max(1).to_string()])
-            .arg(&peer_dir)
-            .args(scenes.iter().map(|s| s.dir.as_os_str())),
-        "running opencv_sgbm.py",
-    )?;
-    let mut rows: Vec<Row> = Vec::new();
-    // The script's first line names the OpenCV release.
-    let mut version = String::from("version unknown");
-    for line in String::from_utf8_lossy(&out.stdout).lines() {
-        let v: serde_json::Value = serde_json::from_str(line)
-            .map_err(|e| fail("bad output line", format!("{line}: {e}")))?;
-        if let Some(v) = v["opencv"].as_str() {
-            version = v.to_string();
-            continue;
-        }
-        let (Some(scene), Some(mode), Some(ms), Some(pfm)) = (
-            v["scene"].as_str(),
-            v["mode"].as_str(),
-            v["ms"].as_f64(),
-            v["pfm"].as_str(),
-        ) else {
-            return Err(fail("bad output line", line.to_string()));
-        };
-        let s = scenes
-            .iter()
-            .find(|s| s.name == scene)
-            .ok_or_else(|| fail("unknown scene", scene.to_string()))?;
-        let disparity = Raster::read_pfm(pfm, &ImageLimits::default())?;
-        let name = format!("opencv {mode}");
-        let idx = match rows.iter().position(|r| r.name == name) {
-            Some(i) => i,
-            None => {
-                rows.push(Row {
-                    name: name.clone(),
-                    description: format!(
-                        "StereoSGBM MODE_{mode} (OpenCV {version}), README parameters"
-                    ),
-                    scores: vec![],
-                    ms: vec![],
-                    peer: true,
-                });
-                rows.len() - 1
-            }
-        };
-        rows[idx]
-            .scores
-            .push(score(&disparity, &s.truth, &s.mask, ndisp(s) as f32)?);
-        rows[idx].ms.push(ms);
-    }
-    if rows.iter().any(|r| r.scores.len() != scenes.len()) || rows.is_empty() {
-        return Err(fail("incomplete output", format!("{} rows", rows.len())));
-    }
-    Ok(rows)
 }
 
 struct Report {
