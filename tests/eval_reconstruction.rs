@@ -82,3 +82,58 @@ fn room_at_tiny_size_gives_the_table_and_finite_figures() {
         }
     }
 }
+
+#[test]
+fn options_are_scored_on_the_same_render_and_bad_ones_are_refused_before_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |options: &[&str]| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_parallax"));
+        command
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .args(["eval", "reconstruction", "--scene", "room"])
+            .args(["--width", "96", "--height", "72", "--spp", "2", "--quiet"])
+            .arg("--out")
+            .arg(dir.path());
+        for o in options {
+            command.args(["--options", o]);
+        }
+        command.output().unwrap()
+    };
+    let out = run(&[r#"{"smoothing_passes": 0}"#]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let md = std::fs::read_to_string(dir.path().join("reconstruction.md")).unwrap();
+    assert!(
+        md.contains("| room |") && md.contains("| room (options 1) |"),
+        "{md}"
+    );
+    assert!(
+        md.contains(r#"- options 1: `{"smoothing_passes": 0}`"#),
+        "{md}"
+    );
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("reconstruction.json")).unwrap(),
+    )
+    .unwrap();
+    let (default, unsmoothed) = (&json[0], &json[1]);
+    assert_eq!(default["options"], serde_json::Value::Null);
+    assert_eq!(unsmoothed["options"], r#"{"smoothing_passes": 0}"#);
+    // One render: the same noise figure; other options: another depth map.
+    assert_eq!(default["render_noise"], unsmoothed["render_noise"]);
+    assert_ne!(
+        default["depth_error"], unsmoothed["depth_error"],
+        "the options were not applied"
+    );
+
+    // Refused before rendering, naming the option.
+    let out = run(&[r#"{"p1": 500, "p2": 10}"#]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--options") && stderr.contains("p1"),
+        "{stderr}"
+    );
+}

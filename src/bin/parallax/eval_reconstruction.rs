@@ -5,7 +5,9 @@
 //! up-vector detection, and where an object placed on the floor or the table comes to rest.
 //!
 //! Writes `reconstruction.md` (the table and how each figure is defined) and `reconstruction.json`
-//! (the same figures) to the output folder.
+//! (the same figures) to the output folder. With `--options`, each scene is rendered once and
+//! reconstructed with the scene's default stereo options and with each set given, so that rows
+//! differ only by the options (a render at 256 spp takes minutes).
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -19,6 +21,7 @@ use parallax::image::{Image, Raster};
 use parallax::mesh::{self, PlaceOptions, Surfaces};
 use parallax::reference::{self, Images, RenderOptions, SampleBudget, Shape};
 use parallax::scene::Scene;
+use parallax::stereo::StereoOptions;
 use parallax::trace::Trace;
 use parallax::{Error, Result};
 use rayon::prelude::*;
@@ -44,6 +47,12 @@ pub struct ReconstructionArgs {
     /// separates the reconstruction's own error from the stereo matcher's.
     #[arg(long)]
     true_depth: bool,
+    /// Also reconstruct each render with these stereo options: a JSON object of `StereoOptions`
+    /// fields (inline, or `@FILE`) over the scene's default (`quality`), `max_disparity` from
+    /// the render's calibration unless given (for example `{"smoothing_passes": 0}`). Each set
+    /// gives its own rows, `SCENE (options K)`, on the same render. May be given several times.
+    #[arg(long, value_name = "JSON|@FILE", conflicts_with = "true_depth")]
+    options: Vec<String>,
     /// Where `reconstruction.md` and `reconstruction.json` go.
     #[arg(long, default_value = "target/eval-reconstruction", value_name = "DIR")]
     out: PathBuf,
@@ -118,6 +127,8 @@ struct PlaneResult {
 #[derive(Debug, Clone, serde::Serialize)]
 struct SceneResult {
     scene: String,
+    /// The `--options` set the scene was reconstructed with (`None`: the scene's default).
+    options: Option<String>,
     width: u32,
     height: u32,
     spp: u32,
@@ -169,16 +180,34 @@ pub fn run(args: ReconstructionArgs) -> Result<()> {
     if args.spp == 0 {
         return Err(Error::invalid("--spp must be at least 1"));
     }
+    // Every set is checked before the first (long) render.
+    let mut configs: Vec<Option<OptionsSet>> = vec![None];
+    for spec in &args.options {
+        configs.push(Some(OptionsSet::parse(spec)?));
+    }
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let context = Arc::new(Context::new(ContextOptions::default())?);
     let mut results = Vec::new();
     for name in &args.scenes {
         let spinner = args.common.spinner(&format!("{name}: rendering"));
-        let result = trace.time(name, "render, reconstruct and score", |_| {
-            evaluate(name, &args, &context)
-        })?;
+        let (images, render_s) = trace.time(name, "render", |_| render(name, &args))?;
+        for (k, config) in configs.iter().enumerate() {
+            let label = match config {
+                None => name.clone(),
+                Some(_) => format!("{name} (options {k})"),
+            };
+            let result = trace.time(&label, "reconstruct and score", |_| {
+                evaluate(
+                    &label,
+                    (&images, render_s),
+                    config.as_ref(),
+                    &args,
+                    &context,
+                )
+            })?;
+            results.push(result);
+        }
         spinner.finish_and_clear();
-        results.push(result);
     }
     let markdown = markdown(&results, &args);
     print!("{markdown}");
@@ -220,7 +249,49 @@ fn angle_deg(a: Vec3, b: Vec3) -> f32 {
         .to_degrees()
 }
 
-fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Result<SceneResult> {
+/// One `--options` set.
+struct OptionsSet {
+    /// As given on the command line.
+    spec: String,
+    /// The set over the scene's default options.
+    options: StereoOptions,
+    /// `max_disparity` when the set names it; else the render's calibration gives it.
+    max_disparity: Option<u32>,
+}
+
+impl OptionsSet {
+    /// Parses and checks `spec` (inline JSON or `@FILE`).
+    ///
+    /// # Errors
+    /// `InvalidArgument` naming the spec for malformed JSON, an unknown field or a value out of
+    /// range; `Io` for an unreadable file.
+    fn parse(spec: &str) -> Result<OptionsSet> {
+        let text = match spec.strip_prefix('@') {
+            Some(path) => std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?,
+            None => spec.to_string(),
+        };
+        let options = Scene::default_stereo_options().with_json(&text)?;
+        let named = serde_json::from_str::<serde_json::Value>(&text)
+            .is_ok_and(|v| v.get("max_disparity").is_some());
+        let max_disparity = named.then_some(options.max_disparity);
+        let mut checked = options.clone();
+        checked.max_disparity = max_disparity.unwrap_or(1);
+        // `with_json`'s errors name the JSON; the range check's do not.
+        checked.validate(u32::MAX).map_err(|e| match e {
+            Error::InvalidArgument(why) => Error::invalid(format!("--options {spec:?}: {why}")),
+            other => other,
+        })?;
+        Ok(OptionsSet {
+            spec: spec.to_string(),
+            options,
+            max_disparity,
+        })
+    }
+}
+
+/// The built-in scene `name` rendered at the arguments' size and sample count, and the seconds
+/// it took.
+fn render(name: &str, args: &ReconstructionArgs) -> Result<(Images, f64)> {
     let start = Instant::now();
     let images = reference::render(
         &reference::builtin(name)?,
@@ -231,7 +302,18 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
             ..RenderOptions::default()
         },
     )?;
-    let render_s = start.elapsed().as_secs_f64();
+    Ok((images, start.elapsed().as_secs_f64()))
+}
+
+/// Reconstructs one render (and the seconds it took) through the `Scene`, with an `--options`
+/// set when given, and scores it; `row` names the result.
+fn evaluate(
+    row: &str,
+    (images, render_s): (&Images, f64),
+    config: Option<&OptionsSet>,
+    args: &ReconstructionArgs,
+    context: &Arc<Context>,
+) -> Result<SceneResult> {
     let (w, h) = (images.depth.width(), images.depth.height());
 
     // The truth in the left camera's frame (x right, y up, z towards the viewer).
@@ -240,7 +322,7 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
     let world_up = Vec3::from(images.scene.camera.up).normalize();
     let up = world_to_camera.transform_vector3(world_up).normalize();
     let eye_height = world_up.dot(camera_to_world.w_axis.truncate());
-    let planes: Vec<TruePlane> = true_plane_heights(&images)
+    let planes: Vec<TruePlane> = true_plane_heights(images)
         .into_iter()
         .map(|(name, height)| TruePlane {
             name,
@@ -270,6 +352,9 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
     let right = Image::from_linear_rgb(&images.right);
     scene.set_stereo_pair(&left.view(), &right.view())?;
     scene.set_calibration(images.calibration)?;
+    if let Some(set) = config {
+        scene.set_stereo_options_auto_range(set.options.clone(), set.max_disparity)?;
+    }
     if args.true_depth {
         scene.set_depth(images.depth.clone(), None, None)?;
     }
@@ -369,7 +454,8 @@ fn evaluate(name: &str, args: &ReconstructionArgs, context: &Arc<Context>) -> Re
         .collect();
 
     Ok(SceneResult {
-        scene: name.to_string(),
+        scene: row.to_string(),
+        options: config.map(|set| set.spec.clone()),
         width: w as u32,
         height: h as u32,
         spp: args.spp,
@@ -528,6 +614,16 @@ fn markdown(results: &[SceneResult], args: &ReconstructionArgs) -> String {
             placed("floor"),
             placed("table"),
         );
+    }
+    if !args.options.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nRows `(options K)`: the same render reconstructed with the K-th `--options` set \
+             over the scene's default stereo options:\n"
+        );
+        for (k, spec) in args.options.iter().enumerate() {
+            let _ = writeln!(s, "- options {}: `{spec}`", k + 1);
+        }
     }
     let _ = writeln!(s, "\n## Details\n");
     for r in results {
