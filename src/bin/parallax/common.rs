@@ -74,12 +74,14 @@ pub fn stereo_options(
     base: &parallax::stereo::StereoOptions,
     spec: &str,
 ) -> parallax::Result<parallax::stereo::StereoOptions> {
+    base.with_json(&options_text(spec)?)
+}
+
+/// The JSON of an `--options` spec: the spec itself, or the file named after `@`.
+pub fn options_text(spec: &str) -> parallax::Result<String> {
     match spec.strip_prefix('@') {
-        Some(path) => {
-            let text = std::fs::read_to_string(path).map_err(|e| parallax::Error::io(path, e))?;
-            base.with_json(&text)
-        }
-        None => base.with_json(spec),
+        Some(path) => std::fs::read_to_string(path).map_err(|e| parallax::Error::io(path, e)),
+        None => Ok(spec.to_string()),
     }
 }
 

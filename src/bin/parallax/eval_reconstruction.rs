@@ -266,10 +266,7 @@ impl OptionsSet {
     /// `InvalidArgument` naming the spec for malformed JSON, an unknown field or a value out of
     /// range; `Io` for an unreadable file.
     fn parse(spec: &str) -> Result<OptionsSet> {
-        let text = match spec.strip_prefix('@') {
-            Some(path) => std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?,
-            None => spec.to_string(),
-        };
+        let text = crate::common::options_text(spec)?;
         let options = Scene::default_stereo_options().with_json(&text)?;
         let named = serde_json::from_str::<serde_json::Value>(&text)
             .is_ok_and(|v| v.get("max_disparity").is_some());
