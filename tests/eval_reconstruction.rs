@@ -86,20 +86,20 @@ fn room_at_tiny_size_gives_the_table_and_finite_figures() {
 #[test]
 fn options_are_scored_on_the_same_render_and_bad_ones_are_refused_before_it() {
     let dir = tempfile::tempdir().unwrap();
-    let run = |options: &[&str]| {
+    let run = |options: &[&str], out: &std::path::Path| {
         let mut command = Command::new(env!("CARGO_BIN_EXE_parallax"));
         command
             .env("XDG_RUNTIME_DIR", std::env::temp_dir())
             .args(["eval", "reconstruction", "--scene", "room"])
             .args(["--width", "96", "--height", "72", "--spp", "2", "--quiet"])
             .arg("--out")
-            .arg(dir.path());
+            .arg(out);
         for o in options {
             command.args(["--options", o]);
         }
         command.output().unwrap()
     };
-    let out = run(&[r#"{"smoothing_passes": 0}"#]);
+    let out = run(&[r#"{"smoothing_passes": 0}"#], dir.path());
     assert!(
         out.status.success(),
         "{}",
@@ -128,9 +128,15 @@ fn options_are_scored_on_the_same_render_and_bad_ones_are_refused_before_it() {
         "the options were not applied"
     );
 
-    // Refused before rendering, naming the option.
-    let out = run(&[r#"{"p1": 500, "p2": 10}"#]);
+    // Refused before rendering, naming the option: the output folder, made before the first
+    // render, is not made.
+    let refused_out = dir.path().join("refused");
+    let out = run(&[r#"{"p1": 500, "p2": 10}"#], &refused_out);
     assert!(!out.status.success());
+    assert!(
+        !refused_out.exists(),
+        "the refusal came after the output folder was made"
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
         stderr.contains("--options") && stderr.contains("p1"),
