@@ -368,7 +368,7 @@ struct ShadowComparison {
 /// light on each sample facing them, lit and unoccluded, at their fitted intensities; the
 /// candidate's intensity is `weight`), of the sum. The mask shows every light's shadows, and
 /// where two lights reach a surface, the shadow of one is only as dark as that light's share.
-fn shadow_disagreement(
+fn compare_shadows(
     samples: &[Sample],
     lit_open: &[(f32, f32, f32)],
     others: &[(f32, f32)],
@@ -836,7 +836,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let has_mask = inputs.shadow_mask.is_some();
     let baseline_score = if has_mask && !in_view.is_empty() {
         let no_candidate = vec![(0.0, 0.0, 0.0); samples.len()];
-        let shadows = shadow_disagreement(
+        let shadows = compare_shadows(
             &samples,
             &no_candidate,
             &in_view_direct(&baseline.x),
@@ -902,7 +902,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             let axis_light = candidate_light(cone[0], distance);
             let others = in_view_direct(&fit.x);
             let weight = fit.x[in_view.len()] as f32;
-            shadow_disagreement(&samples, &per_sample, &others, weight, |s| {
+            compare_shadows(&samples, &per_sample, &others, weight, |s| {
                 axis_light.towards(s.p).0
             })
         } else {
@@ -1371,21 +1371,21 @@ mod tests {
         };
         // Agreement on the first two; the third is half hidden against an unshadowed mask.
         // Against predicting no shadow, the second earns 1 and the third costs 0.5.
-        let c = shadow_disagreement(&samples, &lit_open, &[(0.0, 0.0); 3], 1.0, |_| Vec3::Y);
+        let c = compare_shadows(&samples, &lit_open, &[(0.0, 0.0); 3], 1.0, |_| Vec3::Y);
         close(c, 0.5 / 3.0, -0.5 / 3.0);
         // Samples facing away from the light do not count.
-        let c = shadow_disagreement(&samples, &lit_open, &[(0.0, 0.0); 3], 1.0, |_| -Vec3::Y);
+        let c = compare_shadows(&samples, &lit_open, &[(0.0, 0.0); 3], 1.0, |_| -Vec3::Y);
         close(c, 0.0, 0.0);
         // Another light as strong, seen by every sample: the candidate's shadow is half as dark
         // (second: 0.5 against 1, as far from the mask as no shadow would be; third: 0.25
         // against 0).
         let others = [(0.8, 0.8); 3];
-        let c = shadow_disagreement(&samples, &lit_open, &others, 1.0, |_| Vec3::Y);
+        let c = compare_shadows(&samples, &lit_open, &others, 1.0, |_| Vec3::Y);
         close(c, 0.75 / 3.0, -0.25 / 3.0);
         // Facing away from the candidate, the samples are judged by the other light alone, which
         // casts no shadow on them: the mask's shadow is missed, which costs nothing against
         // predicting none.
-        let c = shadow_disagreement(&samples, &lit_open, &others, 1.0, |_| -Vec3::Y);
+        let c = compare_shadows(&samples, &lit_open, &others, 1.0, |_| -Vec3::Y);
         close(c, 1.0 / 3.0, 0.0);
     }
 
