@@ -46,16 +46,34 @@
 //! photo shows, only intensity × a small cosine is measured, and an object facing it would be lit
 //! by an arbitrary extrapolation.
 //!
+//! ## A second out-of-view light
+//! Two lights out of view (a ceiling lamp and a bulb on the other side) are not one light: a single
+//! fitted light stands in for both from between them, or from where their shading overlaps (in
+//! `two-lights` with the camera tilted down, straight above the table). So, unless
+//! `FitOptions::max_out_of_view` is 1, a second light is searched the same way beside the first
+//! (the first held as a fixed light, its intensity refitted with the rest), and then the first
+//! again beside the second, so that it can move from the stand-in's place to the light it belongs
+//! to. The pair replaces the single light only when its score is lower than the single light's
+//! and than the baseline's by the margin a light must bring (`FitOptions::min_improvement`), both
+//! of its lights are fitted to some light, and the weaker gives at least a tenth of the
+//! stronger's light at the insertion point (a fainter one changes little of how an inserted object
+//! is lit, and the pair's search finds such faint lights in the small gradients a single light
+//! leaves). The search is greedy: where the first light sits between two similar lights, the
+//! second search may find neither, and the single light stays. It costs two more searches.
+//!
 //! Albedo and light intensity are only known up to a common factor: the fit fixes the median
 //! region albedo to `FitOptions::albedo` (0.5 by default). The colours of the in-view sources and
 //! of the ambient term come from the same fit per channel under the grey-world assumption (the
-//! median albedo is grey); the fitted out-of-view light is kept neutral, since its colour trades
-//! off against the ambient term's and the few regions it lights.
+//! median albedo is grey); the fitted out-of-view lights are kept neutral, since their colour
+//! trades off against the ambient term's and the few regions they light.
 //!
 //! When nothing can be inferred (too few usable pixels, or no candidate light explains the shading
 //! better than ambient light alone and the in-view sources, if any, are all fitted to no light),
 //! the thesis' fallback is used: one light above the scene, and [`LightFit::fallback_used`] says
 //! so, so the caller can warn.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -108,6 +126,10 @@ pub struct FitOptions {
     /// irradiance there is the main one. Point-light candidates are placed around it and the
     /// fitted light's angular size is seen from it. `None`: the median sample point.
     pub insertion_point: Option<[f32; 3]>,
+    /// At most this many out-of-view lights, 1 or 2 (default 2): a second one is searched beside
+    /// the first and kept only when the pair beats the first alone, and ambient light alone, by
+    /// `min_improvement` (see the module documentation).
+    pub max_out_of_view: usize,
 }
 
 impl Default for FitOptions {
@@ -119,6 +141,7 @@ impl Default for FitOptions {
             shadow_weight: 0.5,
             min_improvement: 0.1,
             insertion_point: None,
+            max_out_of_view: 2,
         }
     }
 }
@@ -159,6 +182,12 @@ impl FitOptions {
                 self.min_improvement
             )));
         }
+        if !(1..=2).contains(&self.max_out_of_view) {
+            return Err(Error::invalid(format!(
+                "fit max_out_of_view must be 1 or 2, got {}",
+                self.max_out_of_view
+            )));
+        }
         if let Some(p) = self.insertion_point {
             if !p.iter().all(|v| v.is_finite()) {
                 return Err(Error::invalid(format!(
@@ -178,7 +207,8 @@ pub struct LightFit {
     /// Uniform ambient light as the diffuse radiance of a white surface (linear RGB).
     pub ambient: [f32; 3],
     /// Every light: the in-view sources the fit gives light to (re-scaled; those it fits to no
-    /// light explain nothing and are left out), then the fitted out-of-view light, if kept.
+    /// light explain nothing and are left out), then the fitted out-of-view lights, if kept (at
+    /// most [`FitOptions::max_out_of_view`]).
     pub lights: Vec<Light>,
     /// True when nothing could be inferred and the main light is the "one light above the
     /// scene" fallback.
@@ -216,6 +246,12 @@ const POINT_DIRECTION_DIVISOR: usize = 4;
 /// A sample faces a light for the shadow comparison when the cosine towards it exceeds this: at
 /// grazing angles the light's share of the shading, and so its shadow, is too faint to judge.
 const FACING_COSINE: f32 = 0.15;
+
+/// A second out-of-view light is kept only when it gives at least this share of the other's light
+/// at the insertion point ([`irradiance_at`]): a fainter one changes little of how an inserted
+/// object is lit, and the pair's search finds such faint lights where the first light leaves a
+/// small gradient unexplained.
+const MIN_SECOND_LIGHT_SHARE: f32 = 0.1;
 
 /// Largest relative residual of a fit that is still taken as an inference of the light.
 const MAX_EXPLAINED_RESIDUAL: f64 = 0.5;
@@ -447,6 +483,58 @@ struct ChannelFit {
     residual: f64,
 }
 
+/// Per-region sums of the system `y = ρ_region · (G x)` (Σ y·g, Σ g·gᵀ, Σ y²), from which
+/// [`projected`]'s residual for any `x` follows in O(regions × lights²) instead of
+/// O(samples × lights): the intensity search evaluates it a few hundred times per candidate.
+struct RegionSums {
+    /// Per region: Σ y_i g_i (one entry per column of G).
+    yg: Vec<Vec<f64>>,
+    /// Per region: Σ g_i g_iᵀ, row-major.
+    gg: Vec<Vec<f64>>,
+    /// Per region: Σ y_i².
+    yy: Vec<f64>,
+    columns: usize,
+}
+
+impl RegionSums {
+    fn new(g: &[Vec<f32>], y: &[f32], regions: &[usize], n_regions: usize) -> RegionSums {
+        let k = g.first().map_or(0, |r| r.len());
+        let mut sums = RegionSums {
+            yg: vec![vec![0.0; k]; n_regions],
+            gg: vec![vec![0.0; k * k]; n_regions],
+            yy: vec![0.0; n_regions],
+            columns: k,
+        };
+        for ((row, &yi), &s) in g.iter().zip(y).zip(regions) {
+            let yi = yi as f64;
+            sums.yy[s] += yi * yi;
+            for (a, &ga) in row.iter().enumerate() {
+                let ga = ga as f64;
+                sums.yg[s][a] += yi * ga;
+                for (b, &gb) in row.iter().enumerate() {
+                    sums.gg[s][a * k + b] += ga * gb as f64;
+                }
+            }
+        }
+        sums
+    }
+
+    /// The residual [`projected`] gives for `x`.
+    fn residual(&self, x: &[f64]) -> f64 {
+        let k = self.columns;
+        (0..self.yy.len())
+            .map(|s| {
+                let ys: f64 = self.yg[s].iter().zip(x).map(|(a, b)| a * b).sum();
+                let ss: f64 = (0..k)
+                    .map(|a| x[a] * (0..k).map(|b| self.gg[s][a * k + b] * x[b]).sum::<f64>())
+                    .sum();
+                let r = if ss > 1e-15 { (ys / ss).max(0.0) } else { 0.0 };
+                (self.yy[s] - 2.0 * r * ys + r * r * ss).max(0.0)
+            })
+            .sum()
+    }
+}
+
 /// Residual of `y = ρ_region · (G x)` with each region's best albedo (variable projection: for
 /// fixed `x` the albedos are a closed-form least-squares solution), and those albedos.
 fn projected(
@@ -494,6 +582,7 @@ fn alternate(
     let k = g.first().map_or(1, |r| r.len());
     let mut x = vec![0.0f64; k];
     x[k - 1] = 1.0;
+    let sums = RegionSums::new(g, y, regions, n_regions);
     // Typical size of each light's term, so that u = 0.5 means "as bright as the ambient".
     let scale: Vec<f64> = (0..k - 1)
         .map(|j| {
@@ -515,7 +604,7 @@ fn alternate(
         for j in 0..k - 1 {
             let eval = |u: f64, x: &mut Vec<f64>| {
                 x[j] = scale[j] * (u * std::f64::consts::FRAC_PI_2).tan();
-                projected(g, y, regions, n_regions, x).0
+                sums.residual(x)
             };
             let (mut a, mut b) = (0.0f64, 0.999f64);
             let phi = 0.618_033_988_75;
@@ -642,6 +731,151 @@ fn fibonacci(count: usize, up: Vec3, min_up: f32) -> Vec<Vec3> {
 /// `SizeMismatch` when a raster is not the photo's size or the camera's; `InvalidArgument` for an
 /// empty photo, bad options, a bad camera, a zero up vector or an invalid in-view light.
 pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -> Result<LightFit> {
+    let terms_cache = CandidateTerms::default();
+    let first = fit_beside(inputs, in_view, 0, options, &terms_cache)?;
+    if options.max_out_of_view < 2 {
+        return Ok(first.fit);
+    }
+    let Some(one) = first.candidate.as_ref().filter(|c| c.score.is_finite()) else {
+        return Ok(first.fit);
+    };
+    // The second light is searched beside the first, then the first again beside the second:
+    // alone, the first stood in for both (two lamps on either side make one light from
+    // between them), and beside the second it can move to the light it belongs to. These
+    // searches keep any improvement; the pair is judged as a whole below.
+    let open = FitOptions {
+        min_improvement: 0.0,
+        ..*options
+    };
+    let second = fit_beside(
+        inputs,
+        &[in_view, &[one.light]].concat(),
+        1,
+        &open,
+        &terms_cache,
+    )?;
+    let Some(two) = second.candidate.as_ref() else {
+        return Ok(first.fit);
+    };
+    let pair = fit_beside(
+        inputs,
+        &[in_view, &[two.light]].concat(),
+        1,
+        &open,
+        &terms_cache,
+    )?;
+    // The pair must bring the margin a light must bring over none, over the first light alone
+    // as well as over the baseline, and hand on both of its lights, the weaker giving a share of
+    // the stronger's light at the insertion point that an inserted object would show.
+    let margin = 1.0 - options.min_improvement as f64;
+    let out_of_view = &pair.fit.lights[pair.fit.lights.len().saturating_sub(2)..];
+    let weaker_share = match out_of_view {
+        [a, b] => {
+            let (ea, eb) = (irradiance_at(a, pair.centre), irradiance_at(b, pair.centre));
+            ea.min(eb) / ea.max(eb).max(f32::MIN_POSITIVE)
+        }
+        _ => 0.0,
+    };
+    let pair_wins = pair.kept
+        && pair.fixed_kept.last() == Some(&true)
+        && weaker_share >= MIN_SECOND_LIGHT_SHARE
+        && pair
+            .candidate
+            .as_ref()
+            .is_some_and(|c| c.score < first.baseline * margin && c.score < one.score * margin);
+    Ok(if pair_wins { pair.fit } else { first.fit })
+}
+
+/// Per-sample terms (lit, unoccluded, facing cosine) of the candidate lights already scored in
+/// one [`fit_lights`] call, keyed by the candidate's cone of directions and its distance. They
+/// depend on the samples and the candidate only, not on the fixed lights beside it, so the pair's
+/// searches reuse most of the first search's visibility marches, which are most of its cost.
+#[derive(Default)]
+struct CandidateTerms {
+    terms: Mutex<HashMap<Vec<u32>, SampleTerms>>,
+}
+
+/// Per sample: a candidate's light with cast shadows, without, and the facing cosine.
+type SampleTerms = Arc<Vec<(f32, f32, f32)>>;
+
+impl CandidateTerms {
+    /// The cached terms of the candidate, or `compute`'s, stored for the next search.
+    fn get_or_insert(
+        &self,
+        cone: &[Vec3],
+        distance: Option<f32>,
+        compute: impl FnOnce() -> Vec<(f32, f32, f32)>,
+    ) -> SampleTerms {
+        let key: Vec<u32> = cone
+            .iter()
+            .flat_map(|d| d.to_array())
+            .chain(distance)
+            .map(f32::to_bits)
+            .collect();
+        // A poisoned lock only means another search panicked; its entries are whole.
+        let cached = self
+            .terms
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(&key)
+            .cloned();
+        cached.unwrap_or_else(|| {
+            let terms = Arc::new(compute());
+            self.terms
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .insert(key, terms.clone());
+            terms
+        })
+    }
+}
+
+/// An out-of-view light as [`fit_beside`] found it, before the decision to keep it.
+struct Candidate {
+    /// Its kind, direction or position, size and confidence, at unit intensity.
+    light: Light,
+    /// Its score beside the fixed lights (lower is better).
+    score: f64,
+}
+
+/// One search for an out-of-view light beside fixed ones, and the fit it ends in.
+struct OneFit {
+    fit: LightFit,
+    /// Score of the fixed lights and ambient light alone.
+    baseline: f64,
+    /// The best out-of-view light found, kept or not.
+    candidate: Option<Candidate>,
+    /// Whether `fit` holds the candidate.
+    kept: bool,
+    /// Whether `fit` holds each fixed light (those fitted to no light are left out).
+    fixed_kept: Vec<bool>,
+    /// Where the main light was judged from (the insertion point, or the median sample point).
+    centre: Vec3,
+}
+
+/// A light's luminance at `point`, unoccluded and facing it: how the main light is chosen.
+fn irradiance_at(light: &Light, point: Vec3) -> f32 {
+    let (_, d) = light.towards(point);
+    let fall = if d.is_finite() {
+        1.0 / (d * d).max(1e-4)
+    } else {
+        1.0
+    };
+    luminance(light.intensity) * fall
+}
+
+/// The fit of one out-of-view light beside `fixed_lights` (see the module documentation): the
+/// in-view sources, then, when `held_neutral` > 0, that many out-of-view lights of an earlier
+/// search, whose colour is held neutral as the fitted light's is. The comments below call all of
+/// them the in-view lights: the fit treats them alike (positions kept, intensities refitted,
+/// their shadows part of the prediction).
+fn fit_beside(
+    inputs: &FitInputs,
+    fixed_lights: &[Light],
+    held_neutral: usize,
+    options: &FitOptions,
+    terms_cache: &CandidateTerms,
+) -> Result<OneFit> {
     options.validate()?;
     inputs.camera.validate()?;
     let (w, h) = check_photo_camera(inputs.photo, inputs.camera)?;
@@ -659,7 +893,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         )));
     }
     let up = up.normalize();
-    for l in in_view {
+    for l in fixed_lights {
         l.validate()?;
     }
 
@@ -668,7 +902,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         .sqrt()
         .ceil()
         .max(1.0) as usize;
-    let mut region_index = std::collections::HashMap::new();
+    let mut region_index = HashMap::new();
     let mut samples = Vec::new();
     for y in (stride / 2..h).step_by(stride) {
         for x in (stride / 2..w).step_by(stride) {
@@ -756,7 +990,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
 
     // Each in-view light's term per sample with and without cast shadows (its column is the
     // former), and whether the sample faces it enough to judge its shadow.
-    let fixed: Vec<Vec<(f32, f32, bool)>> = in_view
+    let fixed_terms: Vec<Vec<(f32, f32, bool)>> = fixed_lights
         .iter()
         .map(|l| {
             samples
@@ -768,7 +1002,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let build = |extra: Option<&Vec<f32>>| -> Vec<Vec<f32>> {
         (0..samples.len())
             .map(|i| {
-                let mut row: Vec<f32> = fixed.iter().map(|c| c[i].0).collect();
+                let mut row: Vec<f32> = fixed_terms.iter().map(|c| c[i].0).collect();
                 if let Some(e) = extra {
                     row.push(e[i]);
                 }
@@ -811,8 +1045,19 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             samples: samples_used,
         }
     };
+    let nothing_found = |fit: LightFit, baseline: f64| OneFit {
+        fit,
+        baseline,
+        candidate: None,
+        kept: false,
+        fixed_kept: vec![false; fixed_lights.len()],
+        centre,
+    };
     if samples.len() < 50 || n_regions == 0 || luma.iter().all(|v| *v <= 1e-6) {
-        return Ok(fallback(samples.len(), in_view));
+        return Ok(nothing_found(
+            fallback(samples.len(), fixed_lights),
+            f64::INFINITY,
+        ));
     }
 
     // The in-view lights' direct light on each sample facing them, at intensities `x` (their
@@ -820,7 +1065,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let in_view_direct = |x: &[f64]| -> Vec<(f32, f32)> {
         (0..samples.len())
             .map(|i| {
-                fixed
+                fixed_terms
                     .iter()
                     .zip(x)
                     .filter(|(c, _)| c[i].2)
@@ -834,7 +1079,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     // the mask; none without in-view lights).
     let baseline = alternate(&build(None), &luma, &regions, n_regions, options.albedo);
     let has_mask = inputs.shadow_mask.is_some();
-    let baseline_score = if has_mask && !in_view.is_empty() {
+    let baseline_score = if has_mask && !fixed_lights.is_empty() {
         let no_candidate = vec![(0.0, 0.0, 0.0); samples.len()];
         let shadows = compare_shadows(
             &samples,
@@ -857,25 +1102,27 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         // Per sample: the cone's light with cast shadows, without, and the facing cosine towards
         // the cone's axis when unoccluded (the support test needs the cosine alone: the light
         // term of a point light also falls off with 1/r²).
-        let per_sample: Vec<(f32, f32, f32)> = samples
-            .par_iter()
-            .map(|s| {
-                let (mut lit, mut open, mut facing) = (0.0, 0.0, 0.0);
-                for (k, d) in cone.iter().enumerate() {
-                    let light = candidate_light(*d, distance);
-                    if let Some((shade, l, max_dist)) = geometry(&light, s, reach) {
-                        open += shade;
-                        if visible(&occluders, s.p, s.n, l, max_dist, None) {
-                            lit += shade;
-                            if k == 0 {
-                                facing = s.n.dot(l);
+        let per_sample = terms_cache.get_or_insert(cone, distance, || {
+            samples
+                .par_iter()
+                .map(|s| {
+                    let (mut lit, mut open, mut facing) = (0.0, 0.0, 0.0);
+                    for (k, d) in cone.iter().enumerate() {
+                        let light = candidate_light(*d, distance);
+                        if let Some((shade, l, max_dist)) = geometry(&light, s, reach) {
+                            open += shade;
+                            if visible(&occluders, s.p, s.n, l, max_dist, None) {
+                                lit += shade;
+                                if k == 0 {
+                                    facing = s.n.dot(l);
+                                }
                             }
                         }
                     }
-                }
-                (lit / cone.len() as f32, open / cone.len() as f32, facing)
-            })
-            .collect();
+                    (lit / cone.len() as f32, open / cone.len() as f32, facing)
+                })
+                .collect()
+        });
         let column: Vec<f32> = per_sample.iter().map(|v| v.0).collect();
         // A light is inferred only from surfaces it lights: one that reaches the photo's
         // surfaces at grazing angles alone explains a faint gradient with any intensity, and
@@ -901,7 +1148,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         let shadows = if has_mask {
             let axis_light = candidate_light(cone[0], distance);
             let others = in_view_direct(&fit.x);
-            let weight = fit.x[in_view.len()] as f32;
+            let weight = fit.x[fixed_lights.len()] as f32;
             compare_shadows(&samples, &per_sample, &others, weight, |s| {
                 axis_light.towards(s.p).0
             })
@@ -1019,7 +1266,10 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         (d, _) => d,
     };
     let Some((_, direction, distance)) = best else {
-        return Ok(fallback(samples.len(), in_view));
+        return Ok(nothing_found(
+            fallback(samples.len(), fixed_lights),
+            baseline_score,
+        ));
     };
     // Angular size (seen from the insertion point): a cone of directions for a few widths; the
     // softest that does not explain the photo worse wins.
@@ -1060,8 +1310,31 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     let keep_fitted = score < baseline_score * (1.0 - options.min_improvement as f64)
         && score < MAX_EXPLAINED_RESIDUAL
         && fitted_residual < MAX_EXPLAINED_RESIDUAL;
-    if !keep_fitted && in_view.is_empty() {
-        return Ok(fallback(samples.len(), in_view));
+    let fitted_light = |intensity: [f32; 3]| {
+        let mut l = match distance {
+            None => Light::directional((-direction).to_array(), size_deg, intensity),
+            Some(r) => Light::point(
+                (centre + direction * r).to_array(),
+                2.0 * r * (size_deg / 2.0).to_radians().tan(),
+                intensity,
+            ),
+        };
+        l.confidence = (1.0 - score / baseline_score.max(1e-9)).clamp(0.05, 1.0) as f32;
+        l
+    };
+    let not_kept = |fit: LightFit| OneFit {
+        fit,
+        baseline: baseline_score,
+        candidate: Some(Candidate {
+            light: fitted_light([1.0; 3]),
+            score,
+        }),
+        kept: false,
+        fixed_kept: vec![false; fixed_lights.len()],
+        centre,
+    };
+    if !keep_fitted && fixed_lights.is_empty() {
+        return Ok(not_kept(fallback(samples.len(), fixed_lights)));
     }
 
     // Magnitudes come from the luminance fit. Colour: with the luminance fit's region albedos
@@ -1084,11 +1357,11 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         x.is_nan() || x <= 0.0
     };
     if !keep_fitted
-        && lum_fit.x[..in_view.len()]
+        && lum_fit.x[..fixed_lights.len()]
             .iter()
             .all(|x| lights_nothing(*x))
     {
-        return Ok(fallback(samples.len(), &[]));
+        return Ok(not_kept(fallback(samples.len(), &[])));
     }
     let (_, rho) = projected(&g, &luma, &regions, n_regions, &lum_fit.x);
     let channel: Vec<Vec<f64>> = (0..3)
@@ -1104,11 +1377,13 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
                     a[i][m] += gi * s.rgb[k] as f64;
                 }
             }
-            // The fitted light is held at its luminance in every channel (neutral), so the
-            // other lights' and the ambient term's colours are solved under the light that is
-            // handed out, not under a tinted one that is then discarded.
-            if keep_fitted {
-                let (f, x) = (in_view.len(), lum_fit.x[in_view.len()].max(0.0));
+            // The fitted lights (this search's, and those of an earlier one among the fixed
+            // lights) are held at their luminance in every channel (neutral), so the other
+            // lights' and the ambient term's colours are solved under the lights that are
+            // handed out, not under tinted ones that are then discarded.
+            let held = fixed_lights.len() - held_neutral..fixed_lights.len() + keep_fitted as usize;
+            for f in held {
+                let x = lum_fit.x[f].max(0.0);
                 for (i, row) in a.iter_mut().enumerate() {
                     if i != f {
                         row[m] -= row[f] * x;
@@ -1135,7 +1410,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     };
     let pi = std::f32::consts::PI;
     let mut lights = Vec::new();
-    for (j, l) in in_view.iter().enumerate() {
+    for (j, l) in fixed_lights.iter().enumerate() {
         if lights_nothing(lum_fit.x[j]) {
             continue;
         }
@@ -1146,42 +1421,23 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         });
     }
     if keep_fitted {
-        let intensity = [lum_fit.x[in_view.len()].max(0.0) as f32 * pi; 3];
-        let mut l = match distance {
-            None => Light::directional((-direction).to_array(), size_deg, intensity),
-            Some(r) => Light::point(
-                (centre + direction * r).to_array(),
-                2.0 * r * (size_deg / 2.0).to_radians().tan(),
-                intensity,
-            ),
-        };
-        l.confidence = (1.0 - score / baseline_score.max(1e-9)).clamp(0.05, 1.0) as f32;
-        lights.push(l);
+        lights.push(fitted_light(
+            [lum_fit.x[fixed_lights.len()].max(0.0) as f32 * pi; 3],
+        ));
     }
     let ambient = value(g[0].len() - 1);
     // Main light: the most irradiance at the insertion point (unoccluded, facing it).
     let main = lights
         .iter()
         .copied()
-        .max_by(|a, b| {
-            let e = |l: &Light| {
-                let (_, d) = l.towards(centre);
-                let fall = if d.is_finite() {
-                    1.0 / (d * d).max(1e-4)
-                } else {
-                    1.0
-                };
-                luminance(l.intensity) * fall
-            };
-            e(a).total_cmp(&e(b))
-        })
-        .unwrap_or_else(|| fallback(0, in_view).main);
+        .max_by(|a, b| irradiance_at(a, centre).total_cmp(&irradiance_at(b, centre)))
+        .unwrap_or_else(|| fallback(0, fixed_lights).main);
     let residual = if keep_fitted {
         alternate(&g, &luma, &regions, n_regions, options.albedo).residual
     } else {
         baseline.residual
     };
-    Ok(LightFit {
+    let fit = LightFit {
         main,
         ambient,
         lights,
@@ -1193,6 +1449,20 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
             0.0
         },
         samples: samples.len(),
+    };
+    Ok(OneFit {
+        fit,
+        baseline: baseline_score,
+        candidate: Some(Candidate {
+            light: fitted_light([1.0; 3]),
+            score,
+        }),
+        kept: keep_fitted,
+        fixed_kept: lum_fit.x[..fixed_lights.len()]
+            .iter()
+            .map(|x| !lights_nothing(*x))
+            .collect(),
+        centre,
     })
 }
 
@@ -1539,6 +1809,116 @@ mod tests {
         let found = -Vec3::from(fit.main.direction);
         let error = found.angle_between(strong.normalize()).to_degrees();
         assert!(error < 20.0, "found {found}, {error}°");
+    }
+
+    #[test]
+    fn region_sums_give_the_projected_residual() {
+        // The intensity search's shortcut must give what the sample-by-sample residual gives,
+        // including where a region's best albedo would be negative (clamped to 0).
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 33) as f64 / (1u64 << 31) as f64) as f32
+        };
+        let n_regions = 5;
+        let g: Vec<Vec<f32>> = (0..400).map(|_| vec![next(), next() * 0.5, 1.0]).collect();
+        let regions: Vec<usize> = (0..400).map(|i| i % n_regions).collect();
+        let y: Vec<f32> = g
+            .iter()
+            .zip(&regions)
+            .map(|(row, &r)| {
+                // Region 4 is lit the wrong way round: its best albedo is negative.
+                let shade = 2.0 * row[0] + row[1] + 0.3;
+                if r == 4 {
+                    1.0 - shade
+                } else {
+                    0.2 * (r + 1) as f32 * shade + 0.05 * next()
+                }
+            })
+            .collect();
+        let sums = RegionSums::new(&g, &y, &regions, n_regions);
+        for x in [
+            [1.0, 0.0, 1.0],
+            [2.0, 1.0, 0.3],
+            [0.0, 0.0, 1.0],
+            [5.0, 0.1, 0.0],
+        ] {
+            let direct = projected(&g, &y, &regions, n_regions, &x).0;
+            let shortcut = sums.residual(&x);
+            assert!(
+                (direct - shortcut).abs() <= 1e-9 * direct.max(1.0),
+                "{x:?}: {direct} against {shortcut}"
+            );
+        }
+    }
+
+    #[test]
+    fn finds_a_bulb_and_a_sun_both_out_of_view() {
+        // A bulb above the frame on the left and a fainter sun from behind the camera on the
+        // right, both casting the boxes' shadows. One light alone is the bulb; beside it the
+        // second search finds the sun, and the pair explains the room better by more than the
+        // margin, so both are handed on. With one light at most, the sun is missing.
+        let bulb = Vec3::new(-1.0, 1.4, -2.0);
+        let to_sun = Vec3::new(0.6, 1.0, 0.4);
+        let r = room_lit_by(&[(Lit::Bulb(bulb), 12.0), (Lit::Sun(to_sun), 1.0)], 0.15);
+        let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
+        let fit_at_most = |max_out_of_view| {
+            let options = FitOptions {
+                max_out_of_view,
+                ..Default::default()
+            };
+            fit_lights(&inputs(&r, &regions, Some(&r.shadow)), &[], &options).unwrap()
+        };
+        let found_bulb = |fit: &LightFit| {
+            fit.lights.iter().any(|l| {
+                l.kind == LightKind::Point
+                    && Vec3::from(l.position).distance(bulb) < 0.1 * bulb.length()
+            })
+        };
+        let found_sun = |fit: &LightFit| {
+            fit.lights.iter().any(|l| {
+                l.kind == LightKind::Directional
+                    && (-Vec3::from(l.direction)).angle_between(to_sun.normalize())
+                        < 20f32.to_radians()
+            })
+        };
+        let pair = fit_at_most(2);
+        assert!(!pair.fallback_used);
+        assert_eq!(pair.lights.len(), 2, "{pair:?}");
+        assert!(found_bulb(&pair) && found_sun(&pair), "{pair:?}");
+        // Both fitted lights are handed on neutral, as a single fitted light is.
+        for l in &pair.lights {
+            let [r, g, b] = l.intensity;
+            assert!(r == g && g == b && r > 0.0, "{l:?}");
+        }
+        let one = fit_at_most(1);
+        assert_eq!(one.lights.len(), 1, "{one:?}");
+        assert!(found_bulb(&one) && !found_sun(&one), "{one:?}");
+        assert!(
+            pair.residual < one.residual,
+            "{} {}",
+            pair.residual,
+            one.residual
+        );
+    }
+
+    #[test]
+    fn a_faint_second_light_is_not_handed_on() {
+        // Two suns, the second two thirds as strong as the first and from the other side: the
+        // fit keeps one light there; a pair search that kept any improvement added a point
+        // light far above the room at a hundredth of the sun's strength.
+        let r = room_lit_by(
+            &[
+                (Lit::Sun(Vec3::new(-0.8, 1.0, 0.2)), 1.5),
+                (Lit::Sun(Vec3::new(0.5, 1.0, 0.6)), 1.0),
+            ],
+            0.15,
+        );
+        let fit = fit_with_mask(&r);
+        assert!(!fit.fallback_used);
+        assert_eq!(fit.lights.len(), 1, "{fit:?}");
     }
 
     #[test]
