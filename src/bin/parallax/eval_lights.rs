@@ -72,6 +72,8 @@ struct Row {
     sh_rel_rms: f32,
     shading_rel_rms: f32,
     seconds: f64,
+    /// The estimate's lights (left camera frame, metres), in-view sources first.
+    estimated_lights: Vec<parallax::light::Light>,
 }
 
 /// Irradiance (luminance) a true light gives a surface facing it at `p`, and the unit direction
@@ -573,6 +575,7 @@ fn evaluate(
         sh_rel_rms,
         shading_rel_rms: estimate.fit.residual,
         seconds,
+        estimated_lights: estimate.fit.lights.clone(),
     };
     Ok((row, decomposition))
 }
@@ -635,12 +638,13 @@ pub fn run(args: LightsArgs) -> Result<()> {
         "\nDefinitions: *main dir. error* — angle at the insertion point (2 cm above the table, in front of its centre) \
          between the direction to the estimated main light and to the true light giving the most irradiance there; \
          *in-view position error* — distance from each true light inside the frame to the nearest estimated positional \
-         light, as % of the true light's distance from the camera; *found* — positional lights kept by the fit (in-view sources and a fitted out-of-view point light); \
+         light, as % of the true light's distance from the camera; *found* — positional lights kept by the fit (in-view sources and fitted out-of-view point lights); \
          *shadow IoU* — against the pixels where the true visibility averaged over the lights is below 0.5 \
          (surfaces facing away count as shadow), mask > 0.5; *SH irradiance rel. RMS* — over 2000 directions, RGB, the estimate's SH9 \
          against the SH9 of a path-traced radiance probe at the insertion point (24² per face, 64 paths per texel); \
          *shading rel. RMS* — the fitted model (one albedo per continuous region) against the photo's luminance on \
-         the fit's samples; *time* — the estimate (mask, sources, fit, environment) on this machine."
+         the fit's samples; *time* — the estimate (mask, sources, fit, environment) on this machine. \
+         `lights.json` also lists each row's estimated lights (`estimated_lights`, left camera frame, metres)."
     );
     let path = args.out.join("lights.md");
     std::fs::write(&path, &md).map_err(|e| Error::io(&path, e))?;
