@@ -59,7 +59,8 @@
 //! stronger's light at the insertion point (a fainter one changes little of how an inserted object
 //! is lit, and the pair's search finds such faint lights in the small gradients a single light
 //! leaves). The search is greedy: where the first light sits between two similar lights, the
-//! second search may find neither, and the single light stays. It costs two more searches.
+//! second search may find neither, and the single light stays. It costs two more searches, whose
+//! candidates' visibility marches are those of the first search, kept for them.
 //!
 //! Albedo and light intensity are only known up to a common factor: the fit fixes the median
 //! region albedo to `FitOptions::albedo` (0.5 by default). The colours of the in-view sources and
@@ -747,23 +748,20 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
         min_improvement: 0.0,
         ..*options
     };
-    let second = fit_beside(
-        inputs,
-        &[in_view, &[one.light]].concat(),
-        1,
-        &open,
-        &terms_cache,
-    )?;
+    let beside = |light: Light| {
+        fit_beside(
+            inputs,
+            &[in_view, &[light]].concat(),
+            1,
+            &open,
+            &terms_cache,
+        )
+    };
+    let second = beside(one.light)?;
     let Some(two) = second.candidate.as_ref() else {
         return Ok(first.fit);
     };
-    let pair = fit_beside(
-        inputs,
-        &[in_view, &[two.light]].concat(),
-        1,
-        &open,
-        &terms_cache,
-    )?;
+    let pair = beside(two.light)?;
     // The pair must bring the margin a light must bring over none, over the first light alone
     // as well as over the baseline, and hand on both of its lights, the weaker giving a share of
     // the stronger's light at the insertion point that an inserted object would show.
