@@ -7,7 +7,7 @@
 //! | [`sources`] | light sources seen in the photo: bright blobs → area discs or sphere (point) lights |
 //! | [`environment`] | HDR radiance around the insertion point (photo re-projection, host maps) and its SH9 |
 //! | [`estimate`] | every stage in one call, for the Scene and the CLI |
-//! | [`fit`] | inverse rendering: the out-of-view light and ambient that explain the shading and shadows |
+//! | [`fit`] | inverse rendering: the out-of-view lights (one or two) and ambient that explain the shading and shadows |
 //! | `relight` | how the fitted lights shade the surfaces around the insertion point (fills unseen directions) |
 //! | [`prefilter`] | GGX-prefiltered cube mips, the DFG table, the thesis' roughness approximation |
 //! | [`normals`] | per-pixel normals from depth |

@@ -220,7 +220,7 @@ impl Scene {
     }
 
     /// The lights the renderer uses: the host's ([`Scene::set_lights`]) when given, else the
-    /// estimated ones (in-view sources and the fitted light).
+    /// estimated ones (in-view sources and the fitted out-of-view lights).
     ///
     /// # Errors
     /// As [`Scene::lighting_estimate`] when estimating.
