@@ -73,8 +73,9 @@
 //! the thesis' fallback is used: one light above the scene, and [`LightFit::fallback_used`] says
 //! so, so the caller can warn.
 
+use std::cell::RefCell;
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::rc::Rc;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -788,13 +789,15 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
 /// one [`fit_lights`] call, keyed by the candidate's cone of directions and its distance. They
 /// depend on the samples and the candidate only, not on the fixed lights beside it, so the pair's
 /// searches reuse most of the first search's visibility marches, which are most of its cost.
+/// Candidates are scored one after another (each in parallel over the samples), so a plain
+/// `RefCell` holds them.
 #[derive(Default)]
 struct CandidateTerms {
-    terms: Mutex<HashMap<Vec<u32>, SampleTerms>>,
+    terms: RefCell<HashMap<Vec<u32>, SampleTerms>>,
 }
 
 /// Per sample: a candidate's light with cast shadows, without, and the facing cosine.
-type SampleTerms = Arc<Vec<(f32, f32, f32)>>;
+type SampleTerms = Rc<Vec<(f32, f32, f32)>>;
 
 impl CandidateTerms {
     /// The cached terms of the candidate, or `compute`'s, stored for the next search.
@@ -810,19 +813,10 @@ impl CandidateTerms {
             .chain(distance)
             .map(f32::to_bits)
             .collect();
-        // A poisoned lock only means another search panicked; its entries are whole.
-        let cached = self
-            .terms
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .get(&key)
-            .cloned();
+        let cached = self.terms.borrow().get(&key).cloned();
         cached.unwrap_or_else(|| {
-            let terms = Arc::new(compute());
-            self.terms
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .insert(key, terms.clone());
+            let terms = Rc::new(compute());
+            self.terms.borrow_mut().insert(key, terms.clone());
             terms
         })
     }
