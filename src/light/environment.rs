@@ -20,10 +20,11 @@
 //!   band: bands take the nearest band seen over more, and bright pixels (lights and their
 //!   glare, as [`crate::light::detect_sources`] finds them) are never copied. When the lights
 //!   were fitted ([`crate::light::estimate_lighting`]), the copy is relit: each unseen direction
-//!   looks at a stand-in surface facing the point at the room's median distance, and takes its band's mean times that surface's irradiance under
-//!   the fitted ambient and lights over the mean irradiance of the seen surfaces it copies (at
-//!   most 4×). A ceiling copied from the tops of walls is then as dark as the bounce light a
-//!   ceiling gets from a ceiling light, and bright under lamps that hang below it. Lights
+//!   looks at a stand-in surface at the point, facing back along the direction (where the unseen
+//!   surfaces are is not known; see `relight`), and takes its band's mean times that surface's
+//!   irradiance under the fitted ambient and lights over the mean irradiance of the seen surfaces
+//!   it copies (at most 4×). A ceiling copied from the tops of walls then gets the ambient light
+//!   and the lamps below the point, not the ceiling lamp that lit the walls' tops. Lights
 //!   (detected or fitted) are then drawn into the map as discs of their solid angle.
 //! - [`Environment::from_cube`]: a cube map directly.
 //!

@@ -247,7 +247,6 @@ pub fn estimate_lighting(
             depth,
             &normals,
             camera,
-            up_v,
             luminance(fit.ambient),
             &fit.lights,
         )?)
