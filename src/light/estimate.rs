@@ -85,6 +85,11 @@ fn default_insertion_point(
     Vec3::new(med(|p| p.x), med(|p| p.y), med(|p| p.z)) + up * 0.02
 }
 
+/// The median albedo of a photo's surfaces is taken to lie in this range: no surface reflects
+/// more light than it receives, and about 0.05 is as dark as common materials get (charcoal,
+/// black cloth); see [`calibrate_to_environment`].
+const MEDIAN_ALBEDO_RANGE: (f32, f32) = (0.05, 1.0);
+
 /// Puts the fitted lights on the photo's scale. The fit finds each light's strength against the
 /// ambient term from the shading contrast, which does not depend on the albedo, but the overall
 /// scale only from an assumed median albedo, and the colour by grey world, which paints the
@@ -95,17 +100,23 @@ fn default_insertion_point(
 /// (in luminance), and lights out of view, whose colour nothing measures, are made neutral (the
 /// photo is taken as white-balanced). Sources the fallback kept with their detected intensities
 /// stay as they are.
-#[allow(clippy::too_many_arguments)]
+///
+/// The factor is `assumed_albedo` over the photo's true median albedo (the fit's albedos and
+/// lights trade off by it), so it is kept to what a median albedo between
+/// [`MEDIAN_ALBEDO_RANGE`]'s ends allows. Unbounded, a fit that gives the ambient term next to
+/// nothing (a directional light taking all of the shading) turned a measured ambient into lights
+/// hundreds of times too bright, and a fit with no ambient at all into lights not calibrated.
 fn calibrate_to_environment(
     mut fit: LightFit,
     photo: &Raster<[f32; 3]>,
     reprojection: &PhotoReprojection,
     up: Vec3,
     shading: Option<&Raster<f32>>,
+    assumed_albedo: f32,
     options: &EnvironmentOptions,
 ) -> Result<LightFit> {
     let fit_ambient = luminance(fit.ambient);
-    if !(fit_ambient.is_finite() && fit_ambient > 1e-9) {
+    if !(fit_ambient.is_finite() && fit_ambient >= 0.0) {
         return Ok(fit);
     }
     let ambient_env = Environment::from_reprojection(
@@ -120,10 +131,14 @@ fn calibrate_to_environment(
         },
     )?;
     let measured = ambient_env.sh9.diffuse_radiance(up);
-    let lum_scale = luminance(measured) / fit_ambient;
-    if !(lum_scale.is_finite() && lum_scale > 0.0) {
+    let measured_lum = luminance(measured);
+    if !(measured_lum.is_finite() && measured_lum > 0.0) {
         return Ok(fit);
     }
+    let (min_albedo, max_albedo) = MEDIAN_ALBEDO_RANGE;
+    // No ambient in the fit: the ratio is infinite, and the bound is where it stops.
+    let lum_scale = (measured_lum / fit_ambient)
+        .clamp(assumed_albedo / max_albedo, assumed_albedo / min_albedo);
     let scaled = |l: &Light| Light {
         intensity: if l.kind == LightKind::Directional {
             // Out of view: no colour of its own is measured; white balance makes it neutral (a
@@ -257,6 +272,7 @@ pub fn estimate_lighting(
         &reprojection,
         up_v,
         shading.as_ref(),
+        options.fit.albedo,
         &options.environment,
     )?;
     let environment = Environment::from_reprojection(
@@ -318,7 +334,8 @@ mod tests {
             let reprojection =
                 PhotoReprojection::new(photo, Some(&depth), &camera, point, options.face_size)
                     .unwrap();
-            calibrate_to_environment(fit, photo, &reprojection, Vec3::Y, None, &options).unwrap()
+            calibrate_to_environment(fit, photo, &reprojection, Vec3::Y, None, 0.5, &options)
+                .unwrap()
         };
         let out = calibrate(fit(vec![lamp, sun], ambient, false), &photo);
         for (a, b) in out.ambient.iter().zip([0.4, 0.3, 0.2]) {
@@ -344,5 +361,22 @@ mod tests {
         let before = fit(vec![lamp, sun], ambient, false);
         let out = calibrate(before.clone(), &black);
         assert_eq!(out, before);
+        // A fit that gives the ambient term next to nothing, or nothing, would need a factor of
+        // thousands, or an infinite one: it stops where the photo's median albedo would be 0.05
+        // (the fit assumed 0.5), the same for both.
+        for tiny in [1e-7f32, 0.0] {
+            let out = calibrate(fit(vec![lamp, sun], [tiny; 3], false), &photo);
+            let s = out.lights[1].intensity[0];
+            assert!(
+                (s - luminance(sun.intensity) * 10.0).abs() < 1e-3 * s,
+                "ambient {tiny}: sun {s}"
+            );
+            assert!((luminance(out.ambient) - luminance([0.4, 0.3, 0.2])).abs() < 0.02);
+        }
+        // Nor can the factor make the photo's median albedo exceed 1 (a fit whose ambient alone
+        // is brighter than the photo's).
+        let out = calibrate(fit(vec![lamp, sun], [10.0; 3], false), &photo);
+        let s = out.lights[1].intensity[0];
+        assert!((s - luminance(sun.intensity) * 0.5).abs() < 1e-3 * s, "{s}");
     }
 }
