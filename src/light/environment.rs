@@ -12,7 +12,8 @@
 //!   camera sees in front of it. Pixels without depth (sky, far lamps) are infinitely far. LDR
 //!   photos are expanded to HDR first (see [`inverse_tone_map`]). Directions the camera never saw
 //!   (behind it, above it, behind objects) are filled in two steps: small holes by pull-push (the
-//!   map averaged down a few pyramid levels counting only seen cells), and what is left from the
+//!   map averaged down a few pyramid levels counting only seen cells, not lights and their glare,
+//!   which are never copied anywhere), and what is left from the
 //!   seen directions at the same elevation above the horizon of gravity `up`
 //!   ([`Environment::from_photo_with_up`]): a room goes on behind the camera much as it looks in
 //!   front, floor below, walls at the horizon, ceiling above. An elevation band seen over less
