@@ -1197,6 +1197,22 @@ mod tests {
         (values, weight, elevation)
     }
 
+    /// The cells of a [`band_map`] below 1: lamps and clipped windows (≥ 1) are not copyable.
+    fn copyable_below_one(values: &Raster<[f32; 3]>) -> Vec<bool> {
+        values.pixels().iter().map(|c| c[0] < 1.0).collect()
+    }
+
+    /// Asserts that every cell of a [`band_map`] above elevation `above` holds `want`.
+    fn assert_above(values: &Raster<[f32; 3]>, elevation: &[f32], above: f32, want: f32) {
+        let w = values.width();
+        for (i, e) in elevation.iter().enumerate() {
+            if *e > above {
+                let v = values.get(i % w, i / w)[0];
+                assert!((v - want).abs() < 1e-5, "elevation {e}: {v}");
+            }
+        }
+    }
+
     #[test]
     fn unseen_bands_copy_well_seen_bands_not_stray_or_clipped_cells() {
         // Walls (0.2) seen up to 30° above the horizon, a few bright cells of a lamp fixture just
@@ -1219,12 +1235,7 @@ mod tests {
         );
         let copyable = vec![true; values.len()];
         fill_by_elevation(&mut values, &mut weight, &copyable, Vec3::Y, None);
-        for (i, e) in elevation.iter().enumerate() {
-            if *e > 0.7 {
-                let v = values.get(i % 64, i / 64)[0];
-                assert!((v - 0.2).abs() < 1e-5, "elevation {e}: {v}");
-            }
-        }
+        assert_above(&values, &elevation, 0.7, 0.2);
         // Clipped cells are not copied: half of the walls' top band a bright window, marked as
         // not copyable; the rest of that band and the ceiling take the walls' 0.2.
         let window = |d: Vec3| d.y > 0.3 && d.y < 0.5 && d.x > 0.0;
@@ -1235,17 +1246,9 @@ mod tests {
                 (d.y < 0.5).then_some(0.2)
             }
         });
-        let (w, h) = (values.width(), values.height());
-        let copyable: Vec<bool> = (0..w * h)
-            .map(|i| values.get(i % w, i / w)[0] < 1.0)
-            .collect();
+        let copyable = copyable_below_one(&values);
         fill_by_elevation(&mut values, &mut weight, &copyable, Vec3::Y, None);
-        for (i, e) in elevation.iter().enumerate() {
-            if *e > 0.5 {
-                let v = values.get(i % w, i / w)[0];
-                assert!((v - 0.2).abs() < 1e-5, "elevation {e}: {v}");
-            }
-        }
+        assert_above(&values, &elevation, 0.5, 0.2);
     }
 
     #[test]
@@ -1266,9 +1269,7 @@ mod tests {
             }
         });
         let (w, h) = (values.width(), values.height());
-        let copyable: Vec<bool> = (0..w * h)
-            .map(|i| values.get(i % w, i / w)[0] < 1.0)
-            .collect();
+        let copyable = copyable_below_one(&values);
         let lamp_cells = copyable.iter().filter(|c| !**c).count();
         let hole_cells: Vec<usize> = (0..w * h)
             .filter(|&i| *weight.get(i % w, i / w) == 0.0 && (0.3..0.45).contains(&elevation[i]))
@@ -1283,12 +1284,7 @@ mod tests {
             assert!((v - 0.2).abs() < 1e-5, "hole cell {i}: {v}");
         }
         fill_by_elevation(&mut values, &mut weight, &copyable, Vec3::Y, None);
-        for (i, e) in elevation.iter().enumerate() {
-            if *e > 0.7 {
-                let v = values.get(i % w, i / w)[0];
-                assert!((v - 0.2).abs() < 1e-5, "elevation {e}: {v}");
-            }
-        }
+        assert_above(&values, &elevation, 0.7, 0.2);
         // The lamp itself is still in the map.
         let lamp_kept = (0..w * h)
             .filter(|&i| values.get(i % w, i / w)[0] == 8.0)

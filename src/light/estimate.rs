@@ -104,8 +104,9 @@ const MEDIAN_ALBEDO_RANGE: (f32, f32) = (0.05, 1.0);
 /// The factor is `assumed_albedo` over the photo's true median albedo (the fit's albedos and
 /// lights trade off by it), so it is kept to what a median albedo between
 /// [`MEDIAN_ALBEDO_RANGE`]'s ends allows. Unbounded, a fit that gives the ambient term next to
-/// nothing (a directional light taking all of the shading) turned a measured ambient into lights
-/// hundreds of times too bright, and a fit with no ambient at all into lights not calibrated.
+/// nothing (a wide light overhead taking the ambient's part of the shading) made its lights as
+/// many times too bright as its ambient was too small, and a fit with no ambient at all was left
+/// uncalibrated.
 fn calibrate_to_environment(
     mut fit: LightFit,
     photo: &Raster<[f32; 3]>,
