@@ -116,10 +116,8 @@ fn calibrate_to_environment(
     assumed_albedo: f32,
     options: &EnvironmentOptions,
 ) -> Result<LightFit> {
+    // `luminance` is finite and ≥ 0 whatever the channels hold.
     let fit_ambient = luminance(fit.ambient);
-    if !(fit_ambient.is_finite() && fit_ambient >= 0.0) {
-        return Ok(fit);
-    }
     let ambient_env = Environment::from_reprojection(
         photo,
         reprojection,
@@ -133,7 +131,7 @@ fn calibrate_to_environment(
     )?;
     let measured = ambient_env.sh9.diffuse_radiance(up);
     let measured_lum = luminance(measured);
-    if !(measured_lum.is_finite() && measured_lum > 0.0) {
+    if measured_lum <= 0.0 {
         return Ok(fit);
     }
     let (min_albedo, max_albedo) = MEDIAN_ALBEDO_RANGE;
