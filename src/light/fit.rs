@@ -51,7 +51,8 @@
 //! fitted light stands in for both from between them, or from where their shading overlaps (in
 //! `two-lights` with the camera tilted down, straight above the table). So, unless
 //! `FitOptions::max_out_of_view` is 1, a second light is searched the same way beside the first
-//! (the first held as a fixed light, its intensity refitted with the rest), and then the first
+//! (the first held as a fixed light, its intensity refitted with the rest; not when the first
+//! search found no candidate that lights enough of the photo), and then the first
 //! again beside the second, so that it can move from the stand-in's place to the light it belongs
 //! to. The pair replaces the single light only when its score is lower than the single light's
 //! and than the baseline's by the margin a light must bring (`FitOptions::min_improvement`), both
@@ -738,7 +739,7 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
     if options.max_out_of_view < 2 {
         return Ok(first.fit);
     }
-    let Some(one) = first.candidate.as_ref().filter(|c| c.score.is_finite()) else {
+    let Some(one) = first.candidate.as_ref() else {
         return Ok(first.fit);
     };
     // The second light is searched beside the first, then the first again beside the second:
@@ -826,7 +827,7 @@ impl CandidateTerms {
 struct Candidate {
     /// Its kind, direction or position, size and confidence, at unit intensity.
     light: Light,
-    /// Its score beside the fixed lights (lower is better).
+    /// Its score beside the fixed lights (lower is better; finite).
     score: f64,
 }
 
@@ -835,7 +836,8 @@ struct OneFit {
     fit: LightFit,
     /// Score of the fixed lights and ambient light alone.
     baseline: f64,
-    /// The best out-of-view light found, kept or not.
+    /// The best out-of-view light found, kept or not; none when no candidate lit enough of the
+    /// photo to be scored.
     candidate: Option<Candidate>,
     /// Whether `fit` holds the candidate.
     kept: bool,
@@ -1266,10 +1268,11 @@ fn fit_beside(
     // Angular size (seen from the insertion point): a cone of directions for a few widths; the
     // softest that does not explain the photo worse wins.
     let (tx, ty) = tangents(direction);
+    // Infinite until a width is supported: when none is, nothing was found (see `candidate`).
     let mut best_size = (
         Scored {
-            score: f64::MAX,
-            residual: f64::MAX,
+            score: f64::INFINITY,
+            residual: f64::INFINITY,
             disagreement: 0.0,
             column: Vec::new(),
         },
@@ -1314,13 +1317,19 @@ fn fit_beside(
         l.confidence = (1.0 - score / baseline_score.max(1e-9)).clamp(0.05, 1.0) as f32;
         l
     };
+    // The light this search found, if any: a direction where no candidate lights enough of the
+    // photo to be judged (every score infinite) is no finding, and a second search beside it
+    // would only repeat the first.
+    let candidate = || {
+        score.is_finite().then(|| Candidate {
+            light: fitted_light([1.0; 3]),
+            score,
+        })
+    };
     let not_kept = |fit: LightFit| OneFit {
         fit,
         baseline: baseline_score,
-        candidate: Some(Candidate {
-            light: fitted_light([1.0; 3]),
-            score,
-        }),
+        candidate: candidate(),
         kept: false,
         fixed_kept: vec![false; fixed_lights.len()],
         centre,
@@ -1445,10 +1454,7 @@ fn fit_beside(
     Ok(OneFit {
         fit,
         baseline: baseline_score,
-        candidate: Some(Candidate {
-            light: fitted_light([1.0; 3]),
-            score,
-        }),
+        candidate: candidate(),
         kept: keep_fitted,
         fixed_kept: lum_fit.x[..fixed_lights.len()]
             .iter()
@@ -2009,6 +2015,63 @@ mod tests {
                 assert!(error < 12.0, "{to_light}: {error}° {fit:?}");
             }
         }
+    }
+
+    #[test]
+    fn a_photo_of_a_ceiling_alone_hands_on_its_lamp_and_searches_once() {
+        // Only a ceiling in view, lit by a bulb hanging below it: every candidate above the
+        // horizon reaches the ceiling from behind, so none can be judged. The search finds
+        // nothing (before, the unsupported best direction came back as a candidate, with the
+        // largest finite score, and two more searches were run beside it), and the bulb alone
+        // is handed on.
+        let (w, h) = (96usize, 72usize);
+        let camera = Camera::from_focal(60.0, w as u32, h as u32).unwrap();
+        let bulb_at = Vec3::new(0.2, 0.6, -3.0);
+        let mut photo = Raster::filled(w, h, [0.0f32; 3]);
+        let mut depth = Raster::filled(w, h, f32::NAN);
+        let mut normals = Raster::filled(w, h, [0.0f32; 3]);
+        for y in 0..h {
+            for x in 0..w {
+                let d = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+                if d.y <= 0.05 {
+                    continue;
+                }
+                let p = d * (1.0 / d.y);
+                let r = bulb_at.distance(p);
+                let cos = (-Vec3::Y).dot((bulb_at - p) / r).max(0.0);
+                let v = 0.5 * (0.2 + 3.0 * cos / (r * r));
+                *photo.get_mut(x, y) = [v; 3];
+                *depth.get_mut(x, y) = -p.z;
+                *normals.get_mut(x, y) = [0.0, -1.0, 0.0];
+            }
+        }
+        let r = Room {
+            photo,
+            depth,
+            normals,
+            shadow: Raster::filled(w, h, 0.0f32),
+            camera,
+        };
+        let regions = continuity_regions(&r.depth, Some(&r.normals), 0.05, 20.0, 30).unwrap();
+        let bulb = Light::point(bulb_at.to_array(), 0.05, [1.0; 3]);
+        let one = fit_beside(
+            &inputs(&r, &regions, None),
+            &[bulb],
+            0,
+            &Default::default(),
+            &CandidateTerms::default(),
+        )
+        .unwrap();
+        assert!(
+            one.candidate.is_none(),
+            "{:?}",
+            one.candidate.map(|c| c.score)
+        );
+        let fit = fit_lights(&inputs(&r, &regions, None), &[bulb], &Default::default()).unwrap();
+        assert!(!fit.fallback_used, "{fit:?}");
+        assert_eq!(fit.lights.len(), 1, "{fit:?}");
+        assert_eq!(fit.lights[0].position, bulb.position);
+        assert!(luminance(fit.lights[0].intensity) > 0.0, "{fit:?}");
     }
 
     #[test]
