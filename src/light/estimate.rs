@@ -1,6 +1,8 @@
 //! The whole illumination estimate in one call: shadow mask, in-view sources, fitted lights and
 //! the environment around the insertion point, from a photo with depth (and normals when known).
 
+use std::time::Instant;
+
 use glam::Vec3;
 
 use super::environment::{Environment, EnvironmentOptions, PhotoReprojection};
@@ -45,6 +47,19 @@ pub struct LightingEstimate {
     pub environment: Environment,
     /// Where the environment was built, camera frame, metres.
     pub insertion_point: [f32; 3],
+    /// Wall-clock milliseconds of each part, in order: `lighting.normals` (only when computed
+    /// from depth), `lighting.regions`, `lighting.mask`, `lighting.sources`, `lighting.fit`,
+    /// `lighting.reprojection`, `lighting.relight` (not after a fallback), `lighting.calibration`,
+    /// `lighting.environment`.
+    pub timings: Vec<(String, f64)>,
+}
+
+/// Runs `f` and appends its wall-clock time to `timings` as `name`, in milliseconds.
+fn timed<T>(timings: &mut Vec<(String, f64)>, name: &str, f: impl FnOnce() -> T) -> T {
+    let start = Instant::now();
+    let value = f();
+    timings.push((name.to_string(), start.elapsed().as_secs_f64() * 1e3));
+    value
 }
 
 /// Where to put the environment when the caller names no point: the median point of the pixels
@@ -186,25 +201,34 @@ pub fn estimate_lighting(
         )));
     }
     let up_v = up_v.normalize();
+    let mut timings = Vec::new();
     let normals = match normals {
         Some(n) => {
             check_same("normal map", photo, n)?;
             n.clone()
         }
-        None => normals_from_depth(depth, camera, 0.05)?,
+        None => timed(&mut timings, "lighting.normals", || {
+            normals_from_depth(depth, camera, 0.05)
+        })?,
     };
     let min_region = (photo.len() / 2000).max(20);
-    let regions = continuity_regions(depth, Some(&normals), 0.04, 25.0, min_region)?;
-    let mask = shadow_mask(photo, Some(&regions), &options.shadow)?;
-    let sources = detect_sources(
-        photo,
-        Some(depth),
-        camera,
-        &SourceOptions {
-            up,
-            ..options.sources
-        },
-    )?;
+    let regions = timed(&mut timings, "lighting.regions", || {
+        continuity_regions(depth, Some(&normals), 0.04, 25.0, min_region)
+    })?;
+    let mask = timed(&mut timings, "lighting.mask", || {
+        shadow_mask(photo, Some(&regions), &options.shadow)
+    })?;
+    let sources = timed(&mut timings, "lighting.sources", || {
+        detect_sources(
+            photo,
+            Some(depth),
+            camera,
+            &SourceOptions {
+                up,
+                ..options.sources
+            },
+        )
+    })?;
     let point = match insertion_point {
         Some(p) => {
             let p = Vec3::from(p);
@@ -226,62 +250,72 @@ pub fn estimate_lighting(
             *regions.get(x, y)
         }
     });
-    let fit = fit_lights(
-        &FitInputs {
-            photo,
-            depth,
-            normals: &normals,
-            regions: &fit_regions,
-            shadow_mask: Some(&mask),
-            camera,
-            up,
-        },
-        &sources,
-        &FitOptions {
-            insertion_point: Some(point.to_array()),
-            ..options.fit
-        },
-    )?;
+    let fit = timed(&mut timings, "lighting.fit", || {
+        fit_lights(
+            &FitInputs {
+                photo,
+                depth,
+                normals: &normals,
+                regions: &fit_regions,
+                shadow_mask: Some(&mask),
+                camera,
+                up,
+            },
+            &sources,
+            &FitOptions {
+                insertion_point: Some(point.to_array()),
+                ..options.fit
+            },
+        )
+    })?;
     // One ray march from the insertion point serves both the ambient calibration and the
     // environment handed out.
-    let reprojection = PhotoReprojection::new(
-        photo,
-        Some(depth),
-        camera,
-        point,
-        options.environment.face_size,
-    )?;
+    let reprojection = timed(&mut timings, "lighting.reprojection", || {
+        PhotoReprojection::new(
+            photo,
+            Some(depth),
+            camera,
+            point,
+            options.environment.face_size,
+        )
+    })?;
     // Unseen directions are filled with surfaces lit as the fit says; a fallback inferred
     // nothing, so they are filled by elevation alone.
     let shading = if fit.fallback_used {
         None
     } else {
-        Some(proxy_shading(
-            &reprojection,
-            depth,
-            &normals,
-            camera,
-            luminance(fit.ambient),
-            &fit.lights,
-        )?)
+        Some(timed(&mut timings, "lighting.relight", || {
+            proxy_shading(
+                &reprojection,
+                depth,
+                &normals,
+                camera,
+                luminance(fit.ambient),
+                &fit.lights,
+            )
+        })?)
     };
-    let fit = calibrate_to_environment(
-        fit,
-        photo,
-        &reprojection,
-        up_v,
-        shading.as_ref(),
-        options.fit.albedo,
-        &options.environment,
-    )?;
-    let environment = Environment::from_reprojection(
-        photo,
-        &reprojection,
-        up_v,
-        &fit.lights,
-        shading.as_ref(),
-        &options.environment,
-    )?;
+    let fit = timed(&mut timings, "lighting.calibration", || {
+        calibrate_to_environment(
+            fit,
+            photo,
+            &reprojection,
+            up_v,
+            shading.as_ref(),
+            options.fit.albedo,
+            &options.environment,
+        )
+    })?;
+    let environment = timed(&mut timings, "lighting.environment", || {
+        Environment::from_reprojection(
+            photo,
+            &reprojection,
+            up_v,
+            &fit.lights,
+            shading.as_ref(),
+            &options.environment,
+        )
+    })?;
     Ok(LightingEstimate {
         shadow_mask: mask,
         regions,
@@ -290,6 +324,7 @@ pub fn estimate_lighting(
         fit,
         environment,
         insertion_point: point.to_array(),
+        timings,
     })
 }
 

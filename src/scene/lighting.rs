@@ -14,7 +14,7 @@ use crate::light::{
     estimate_lighting, normals_from_depth, Environment, EnvironmentOptions, EstimateOptions, Light,
     LightingEstimate, Sh9,
 };
-use crate::trace::Trace;
+use crate::trace::{StageStatus, Trace};
 
 /// The lighting inputs the host may give instead of the estimates.
 #[derive(Debug, Default, Clone)]
@@ -211,6 +211,15 @@ impl Scene {
                         &EstimateOptions::default(),
                     )
                 })?;
+        if trace
+            .stages()
+            .last()
+            .is_some_and(|s| s.name == "lighting" && s.status == StageStatus::Computed)
+        {
+            for (name, ms) in &estimate.timings {
+                trace.record(name.clone(), StageStatus::Computed, *ms, "part of lighting");
+            }
+        }
         const FALLBACK: &str =
             "lighting: the photo's shading is not explained by any light; using one light above the scene";
         if estimate.fit.fallback_used && !trace.warnings().iter().any(|w| w == FALLBACK) {
@@ -228,12 +237,7 @@ impl Scene {
         if let Some(lights) = &self.lighting.host_lights.value {
             let lights = lights.clone();
             return self.traced(|_, trace| {
-                trace.record(
-                    "lighting",
-                    crate::trace::StageStatus::Skipped,
-                    0.0,
-                    "host lights given",
-                );
+                trace.record("lighting", StageStatus::Skipped, 0.0, "host lights given");
                 Ok(lights)
             });
         }
@@ -346,6 +350,17 @@ mod tests {
         let mut s = scene_with_pair();
         let estimate = s.lighting_estimate().unwrap();
         assert_eq!(status(&s, "lighting"), Some(StageStatus::Computed));
+        // Its parts are in the trace, each as long as the estimate measured it.
+        for (name, ms) in &estimate.timings {
+            let stage = s.last_trace().stages().iter().find(|st| st.name == *name);
+            assert!(
+                stage.is_some_and(|st| st.status == StageStatus::Computed && st.ms == *ms),
+                "{name}: {stage:?}"
+            );
+        }
+        for part in ["lighting.mask", "lighting.fit", "lighting.environment"] {
+            assert!(estimate.timings.iter().any(|(n, _)| n == part), "{part}");
+        }
         let main = s.main_light().unwrap().unwrap();
         main.validate().unwrap();
         // Estimated lights are seen from the estimate's insertion point.
