@@ -15,6 +15,8 @@
 //! The mask is used later so that an inserted object does not darken a second time where the photo
 //! already shows a shadow.
 
+use std::collections::HashMap;
+
 use glam::Vec3;
 
 use super::filters::{box_mean, check_same, check_size, components, luminance, median};
@@ -333,46 +335,54 @@ fn chromaticity_mask(
     let radius = (w.min(h) / 8).max(2);
     let mut lit = Raster::filled(w, h, f32::NAN);
     let mut lit_chroma = vec![Raster::filled(w, h, f32::NAN); 3];
-    // One pass per region (and one for pixels of no region, over the whole image).
-    let labels: Vec<u32> = match regions {
-        Some(r) => {
-            let mut l: Vec<u32> = r.pixels().to_vec();
-            l.sort_unstable();
-            l.dedup();
-            l
+    // One pass per region (and one for pixels of no region, over the whole image). A member's
+    // window reaches `radius` pixels, so each pass runs on the region's bounding box grown by
+    // that much: a photo cut into hundreds of small regions would otherwise cost hundreds of
+    // whole-image passes.
+    let label_at = |x: usize, y: usize| regions.map_or(NO_REGION, |r| *r.get(x, y));
+    let mut boxes: HashMap<u32, [usize; 4]> = HashMap::new();
+    for y in 0..h {
+        for x in 0..w {
+            let b = boxes.entry(label_at(x, y)).or_insert([x, y, x, y]);
+            *b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
         }
-        None => vec![NO_REGION],
-    };
-    for &label in &labels {
-        let member = |x: usize, y: usize| regions.is_none_or(|r| *r.get(x, y) == label);
-        let weight = Raster::from_fn(w, h, |x, y| {
+    }
+    let mut labels: Vec<(u32, [usize; 4])> = boxes.into_iter().collect();
+    labels.sort_unstable_by_key(|(label, _)| *label);
+    for (label, [bx0, by0, bx1, by1]) in labels {
+        let (x0, y0) = (bx0.saturating_sub(radius), by0.saturating_sub(radius));
+        let (x1, y1) = ((bx1 + radius + 1).min(w), (by1 + radius + 1).min(h));
+        let (cw, ch) = (x1 - x0, y1 - y0);
+        let crop = |r: &Raster<f32>| Raster::from_fn(cw, ch, |x, y| *r.get(x0 + x, y0 + y));
+        let member = |x: usize, y: usize| label_at(x0 + x, y0 + y) == label;
+        let weight = Raster::from_fn(cw, ch, |x, y| {
             if label == NO_REGION || member(x, y) {
                 1.0
             } else {
                 0.0
             }
         });
+        let luma = crop(&luma);
         let mean = box_mean(&luma, Some(&weight), radius, 0.0);
         // The brighter half of the window is taken as the lit surface.
-        let bright = Raster::from_fn(w, h, |x, y| {
+        let bright_weight = Raster::from_fn(cw, ch, |x, y| {
             if *weight.get(x, y) > 0.0 && *luma.get(x, y) >= *mean.get(x, y) {
                 1.0
             } else {
                 0.0
             }
         });
-        let bright_weight = Raster::from_fn(w, h, |x, y| *weight.get(x, y) * *bright.get(x, y));
         let level = box_mean(&luma, Some(&bright_weight), radius, 0.0);
         let hue: Vec<Raster<f32>> = chroma
             .iter()
-            .map(|c| box_mean(c, Some(&bright_weight), radius, 1.0 / 3.0))
+            .map(|c| box_mean(&crop(c), Some(&bright_weight), radius, 1.0 / 3.0))
             .collect();
-        for y in 0..h {
-            for x in 0..w {
+        for y in 0..ch {
+            for x in 0..cw {
                 if member(x, y) {
-                    *lit.get_mut(x, y) = *level.get(x, y);
+                    *lit.get_mut(x0 + x, y0 + y) = *level.get(x, y);
                     for k in 0..3 {
-                        *lit_chroma[k].get_mut(x, y) = *hue[k].get(x, y);
+                        *lit_chroma[k].get_mut(x0 + x, y0 + y) = *hue[k].get(x, y);
                     }
                 }
             }
