@@ -486,6 +486,34 @@ struct ChannelFit {
     residual: f64,
 }
 
+/// The fit's design matrix `G`: a row per sample, a column per light (its term at unit
+/// intensity) and the ambient term's 1 last. Stored flat: candidates are scored by the thousand,
+/// and a vector per row was an allocation per sample each time.
+struct Design {
+    values: Vec<f32>,
+    columns: usize,
+}
+
+impl Design {
+    /// The rows, in sample order.
+    fn rows(&self) -> std::slice::ChunksExact<'_, f32> {
+        self.values.chunks_exact(self.columns)
+    }
+
+    /// The rows at `indices`, in that order.
+    fn select(&self, indices: &[usize]) -> Design {
+        let c = self.columns;
+        Design {
+            values: indices
+                .iter()
+                .flat_map(|&i| &self.values[i * c..(i + 1) * c])
+                .copied()
+                .collect(),
+            columns: c,
+        }
+    }
+}
+
 /// Per-region sums of the system `y = ρ_region · (G x)` (Σ y·g, Σ g·gᵀ, Σ y²), from which
 /// [`projected`]'s residual follows without going over the samples again: the intensity search
 /// evaluates it a few hundred times per candidate. Stored flat, region after region, since a
@@ -508,15 +536,15 @@ fn region_residual(ys: f64, ss: f64, yy: f64) -> f64 {
 }
 
 impl RegionSums {
-    fn new(g: &[Vec<f32>], y: &[f32], regions: &[usize], n_regions: usize) -> RegionSums {
-        let k = g.first().map_or(0, |r| r.len());
+    fn new(g: &Design, y: &[f32], regions: &[usize], n_regions: usize) -> RegionSums {
+        let k = g.columns;
         let mut sums = RegionSums {
             yg: vec![0.0; n_regions * k],
             gg: vec![0.0; n_regions * k * k],
             yy: vec![0.0; n_regions],
             columns: k,
         };
-        for ((row, &yi), &s) in g.iter().zip(y).zip(regions) {
+        for ((row, &yi), &s) in g.rows().zip(y).zip(regions) {
             let yi = yi as f64;
             sums.yy[s] += yi * yi;
             let yg = &mut sums.yg[s * k..(s + 1) * k];
@@ -574,7 +602,7 @@ impl RegionLine {
 /// Residual of `y = ρ_region · (G x)` with each region's best albedo (variable projection: for
 /// fixed `x` the albedos are a closed-form least-squares solution), and those albedos.
 fn projected(
-    g: &[Vec<f32>],
+    g: &Design,
     y: &[f32],
     regions: &[usize],
     n_regions: usize,
@@ -583,7 +611,7 @@ fn projected(
     let mut ys = vec![0.0f64; n_regions];
     let mut ss = vec![0.0f64; n_regions];
     let mut yy = vec![0.0f64; n_regions];
-    for ((row, &yi), &s) in g.iter().zip(y).zip(regions) {
+    for ((row, &yi), &s) in g.rows().zip(y).zip(regions) {
         let shade: f64 = row.iter().zip(x).map(|(a, b)| *a as f64 * b).sum();
         ys[s] += yi as f64 * shade;
         ss[s] += shade * shade;
@@ -608,20 +636,20 @@ fn projected(
 /// by golden-section search over `x_j = c_j · tan(u·π/2)`, u ∈ [0, 1) (three rounds, cyclically);
 /// then the scale is fixed by the median albedo.
 fn alternate(
-    g: &[Vec<f32>],
+    g: &Design,
     y: &[f32],
     regions: &[usize],
     n_regions: usize,
     albedo: f32,
 ) -> ChannelFit {
-    let k = g.first().map_or(1, |r| r.len());
+    let k = g.columns;
     let mut x = vec![0.0f64; k];
     x[k - 1] = 1.0;
     let sums = RegionSums::new(g, y, regions, n_regions);
     // Typical size of each light's term, so that u = 0.5 means "as bright as the ambient".
     let scale: Vec<f64> = (0..k - 1)
         .map(|j| {
-            let (sum, n) = g.iter().fold((0.0f64, 0usize), |(s, n), r| {
+            let (sum, n) = g.rows().fold((0.0f64, 0usize), |(s, n), r| {
                 if r[j] > 0.0 {
                     (s + r[j] as f64, n + 1)
                 } else {
@@ -696,17 +724,11 @@ fn alternate(
 
 /// [`alternate`], then again without the 10 % of samples the first fit explains worst: shadow
 /// edges a pixel off and unmodelled highlights would otherwise pull the light's contrast down.
-fn trimmed(
-    g: &[Vec<f32>],
-    y: &[f32],
-    regions: &[usize],
-    n_regions: usize,
-    albedo: f32,
-) -> ChannelFit {
+fn trimmed(g: &Design, y: &[f32], regions: &[usize], n_regions: usize, albedo: f32) -> ChannelFit {
     let first = alternate(g, y, regions, n_regions, albedo);
     let (_, rho) = projected(g, y, regions, n_regions, &first.x);
     let mut err: Vec<(f64, usize)> = g
-        .iter()
+        .rows()
         .zip(y)
         .zip(regions)
         .enumerate()
@@ -721,7 +743,7 @@ fn trimmed(
         return first;
     }
     let idx: Vec<usize> = err[..keep].iter().map(|e| e.1).collect();
-    let g2: Vec<Vec<f32>> = idx.iter().map(|&i| g[i].clone()).collect();
+    let g2 = g.select(&idx);
     let y2: Vec<f32> = idx.iter().map(|&i| y[i]).collect();
     let r2: Vec<usize> = idx.iter().map(|&i| regions[i]).collect();
     let second = alternate(&g2, &y2, &r2, n_regions, albedo);
@@ -1023,17 +1045,17 @@ fn fit_beside(
                 .collect()
         })
         .collect();
-    let build = |extra: Option<&Vec<f32>>| -> Vec<Vec<f32>> {
-        (0..samples.len())
-            .map(|i| {
-                let mut row: Vec<f32> = fixed_terms.iter().map(|c| c[i].0).collect();
-                if let Some(e) = extra {
-                    row.push(e[i]);
-                }
-                row.push(1.0);
-                row
-            })
-            .collect()
+    let build = |extra: Option<&Vec<f32>>| -> Design {
+        let columns = fixed_terms.len() + extra.is_some() as usize + 1;
+        let mut values = Vec::with_capacity(samples.len() * columns);
+        for i in 0..samples.len() {
+            values.extend(fixed_terms.iter().map(|c| c[i].0));
+            if let Some(e) = extra {
+                values.push(e[i]);
+            }
+            values.push(1.0);
+        }
+        Design { values, columns }
     };
     // `kept`: the in-view sources that stay, with their detected intensities (the fallback only
     // stands in for what could not be inferred).
@@ -1397,9 +1419,9 @@ fn fit_beside(
     let (_, rho) = projected(&g, &luma, &regions, n_regions, &lum_fit.x);
     let channel: Vec<Vec<f64>> = (0..3)
         .map(|k| {
-            let m = g[0].len();
+            let m = g.columns;
             let mut a = vec![vec![0.0f64; m + 1]; m];
-            for ((row, s), r) in g.iter().zip(&samples).zip(&regions) {
+            for ((row, s), r) in g.rows().zip(&samples).zip(&regions) {
                 for i in 0..m {
                     let gi = row[i] as f64 * rho[*r];
                     for j in 0..m {
@@ -1456,7 +1478,7 @@ fn fit_beside(
             [lum_fit.x[fixed_lights.len()].max(0.0) as f32 * pi; 3],
         ));
     }
-    let ambient = value(g[0].len() - 1);
+    let ambient = value(g.columns - 1);
     // Main light: the most irradiance at the insertion point (unoccluded, facing it).
     let main = lights
         .iter()
@@ -1851,10 +1873,13 @@ mod tests {
             ((state >> 33) as f64 / (1u64 << 31) as f64) as f32
         };
         let n_regions = 5;
-        let g: Vec<Vec<f32>> = (0..400).map(|_| vec![next(), next() * 0.5, 1.0]).collect();
+        let g = Design {
+            values: (0..400).flat_map(|_| [next(), next() * 0.5, 1.0]).collect(),
+            columns: 3,
+        };
         let regions: Vec<usize> = (0..400).map(|i| i % n_regions).collect();
         let y: Vec<f32> = g
-            .iter()
+            .rows()
             .zip(&regions)
             .map(|(row, &r)| {
                 // Region 4 is lit the wrong way round: its best albedo is negative.
