@@ -461,6 +461,44 @@ mod tests {
     }
 
     #[test]
+    fn regions_away_from_the_image_corner_find_their_shadow() {
+        // A textured floor framed by a brighter wall, with a cast shadow in the floor's far
+        // corner. Each region is filtered on its own bounding box grown by the window radius (9
+        // px here), which for the floor starts at (7, 5), not at the image's corner; the shadow
+        // is found where it is, right up to the floor's edge, and nothing on the wall.
+        let (w, h) = (96, 72);
+        let frame = |x: usize, y: usize| x < 16 || y < 14 || x >= w - 16 || y >= h - 14;
+        let shadow = Raster::from_fn(w, h, |x, y| {
+            !frame(x, y) && (56..w - 16).contains(&x) && (40..h - 14).contains(&y)
+        });
+        let photo = Raster::from_fn(w, h, |x, y| {
+            let texture = 0.9 + 0.1 * (((x * 7 + y * 13) % 5) as f32 / 4.0);
+            let light = if frame(x, y) {
+                2.0
+            } else if *shadow.get(x, y) {
+                0.15
+            } else {
+                0.7
+            };
+            [
+                0.4 * light * texture,
+                0.35 * light * texture,
+                0.3 * light * texture,
+            ]
+        });
+        let regions = Raster::from_fn(w, h, |x, y| frame(x, y) as u32);
+        let mask = shadow_mask(&photo, Some(&regions), &ShadowOptions::default()).unwrap();
+        assert!(iou(&mask, &shadow) > 0.8, "iou {}", iou(&mask, &shadow));
+        for y in 0..h {
+            for x in 0..w {
+                if frame(x, y) {
+                    assert!(*mask.get(x, y) < 0.5, "({x}, {y}): {}", mask.get(x, y));
+                }
+            }
+        }
+    }
+
+    #[test]
     fn thesis_method_finds_the_shadow() {
         let (photo, shadow, _) = floor_with_shadow();
         let options = ShadowOptions {
