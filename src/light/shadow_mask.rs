@@ -335,10 +335,10 @@ fn chromaticity_mask(
     let radius = (w.min(h) / 8).max(2);
     let mut lit = Raster::filled(w, h, f32::NAN);
     let mut lit_chroma = vec![Raster::filled(w, h, f32::NAN); 3];
-    // One pass per region (and one for pixels of no region, over the whole image). A member's
-    // window reaches `radius` pixels, so each pass runs on the region's bounding box grown by
-    // that much: a photo cut into hundreds of small regions would otherwise cost hundreds of
-    // whole-image passes.
+    // One pass per region (and one for pixels of no region, over the whole image), each on the
+    // region's bounding box: a photo cut into hundreds of small regions would otherwise cost
+    // hundreds of whole-image passes. A region's members weigh only one another, all inside the
+    // box; pixels of no region weigh every pixel within `radius`, so their box grows by that.
     let label_at = |x: usize, y: usize| regions.map_or(NO_REGION, |r| *r.get(x, y));
     let mut boxes: HashMap<u32, [usize; 4]> = HashMap::new();
     for y in 0..h {
@@ -350,8 +350,9 @@ fn chromaticity_mask(
     let mut labels: Vec<(u32, [usize; 4])> = boxes.into_iter().collect();
     labels.sort_unstable_by_key(|(label, _)| *label);
     for (label, [bx0, by0, bx1, by1]) in labels {
-        let (x0, y0) = (bx0.saturating_sub(radius), by0.saturating_sub(radius));
-        let (x1, y1) = ((bx1 + radius + 1).min(w), (by1 + radius + 1).min(h));
+        let margin = if label == NO_REGION { radius } else { 0 };
+        let (x0, y0) = (bx0.saturating_sub(margin), by0.saturating_sub(margin));
+        let (x1, y1) = ((bx1 + margin + 1).min(w), (by1 + margin + 1).min(h));
         let (cw, ch) = (x1 - x0, y1 - y0);
         let crop = |r: &Raster<f32>| Raster::from_fn(cw, ch, |x, y| *r.get(x0 + x, y0 + y));
         let member = |x: usize, y: usize| label_at(x0 + x, y0 + y) == label;
