@@ -479,15 +479,7 @@ impl Scene {
             .get_or_compute("stereo", &versions, trace, |_| {
                 stereo::match_pair(&pair.left.view(), &right.view(), &options)
             })?;
-        if trace
-            .stages()
-            .last()
-            .is_some_and(|s| s.name == "stereo" && s.status == StageStatus::Computed)
-        {
-            for (name, ms) in &disparity.stats.timings {
-                trace.record(name.clone(), StageStatus::Computed, *ms, "part of stereo");
-            }
-        }
+        trace.record_parts("stereo", &disparity.stats.timings);
         Ok(disparity)
     }
 

@@ -161,6 +161,25 @@ impl Trace {
         self.stages.push(record);
     }
 
+    /// Records the timed parts of `stage` (name, milliseconds) as computed, "part of `stage`",
+    /// when the last record is `stage` computed; a reused stage did no work, so it has no parts.
+    pub fn record_parts(&mut self, stage: &str, parts: &[(String, f64)]) {
+        if self
+            .stages
+            .last()
+            .is_some_and(|s| s.name == stage && s.status == StageStatus::Computed)
+        {
+            for (name, ms) in parts {
+                self.record(
+                    name.clone(),
+                    StageStatus::Computed,
+                    *ms,
+                    format!("part of {stage}"),
+                );
+            }
+        }
+    }
+
     /// Runs `f`, records it as computed with its time, and returns its value.
     pub fn time<T>(&mut self, name: &str, why: &str, f: impl FnOnce(&mut Trace) -> T) -> T {
         let start = Instant::now();

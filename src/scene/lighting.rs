@@ -211,15 +211,7 @@ impl Scene {
                         &EstimateOptions::default(),
                     )
                 })?;
-        if trace
-            .stages()
-            .last()
-            .is_some_and(|s| s.name == "lighting" && s.status == StageStatus::Computed)
-        {
-            for (name, ms) in &estimate.timings {
-                trace.record(name.clone(), StageStatus::Computed, *ms, "part of lighting");
-            }
-        }
+        trace.record_parts("lighting", &estimate.timings);
         const FALLBACK: &str =
             "lighting: the photo's shading is not explained by any light; using one light above the scene";
         if estimate.fit.fallback_used && !trace.warnings().iter().any(|w| w == FALLBACK) {
