@@ -22,7 +22,8 @@ pub mod surfaces;
 pub use bvh::{pick, Bvh, Hit, Ray};
 pub use grid::MeshOptions;
 pub use place::{
-    place, place_on_ray, Orientation, PlaceOptions, Placement, PLACE_SEARCH_RADIUS_PX,
+    place, place_on_ray, Orientation, PlaceOptions, Placement, PlacementScene,
+    PLACE_SEARCH_RADIUS_PX,
 };
 pub use surfaces::{
     detect_surfaces, detect_surfaces_with_confidence, detect_surfaces_with_host_up, SupportSurface,

@@ -17,8 +17,9 @@ use crate::image::Raster;
 use crate::mesh::simplify::simplify;
 use crate::mesh::{
     self, detect_surfaces_with_confidence, detect_surfaces_with_host_up, Bvh, Hit, MeshOptions,
-    PlaceOptions, Placement, Ray, SceneMesh, SurfaceOptions, Surfaces,
+    PlaceOptions, Placement, PlacementScene, Ray, SceneMesh, SurfaceOptions, Surfaces,
 };
+use crate::stereo::Disparity;
 use crate::trace::{StageStatus, Trace};
 
 /// The depth product and the camera intrinsics for it: what every geometric product starts from.
@@ -459,13 +460,8 @@ impl Scene {
         // The confidence that came with the depth (the host's, or the matcher's: 0 on the holes
         // it filled), so that planes are fitted on measured depth. Both are versioned with the
         // depth.
-        let (host_confidence, stereo) = match &self.host_depth.value {
-            Some(host) => (host.confidence.clone(), None),
-            None => (None, Some(self.disparity_traced(trace)?)),
-        };
-        let confidence = host_confidence
-            .as_deref()
-            .or(stereo.as_deref().map(|d| &d.confidence));
+        let confidence = self.depth_confidence(trace)?;
+        let confidence = confidence.as_ref().map(DepthConfidence::raster);
         self.surfaces
             .get_or_compute("surfaces", &versions, trace, |_| match host_up {
                 Some(up) => detect_surfaces_with_host_up(mesh, &camera, confidence, &options, up),
@@ -507,8 +503,14 @@ impl Scene {
         options: &PlaceOptions,
     ) -> Result<Placement> {
         self.traced(|scene, trace| {
-            let (bvh, surfaces, camera) = scene.placement_inputs(trace)?;
-            mesh::place(&bvh, &camera, &surfaces, pixel, size_m, yaw_rad, options)
+            let (bvh, surfaces, camera, confidence) = scene.placement_inputs(trace)?;
+            let scene = PlacementScene {
+                bvh: &bvh,
+                camera: &camera,
+                surfaces: &surfaces,
+                confidence: confidence.as_ref().map(DepthConfidence::raster),
+            };
+            scene.place(pixel, size_m, yaw_rad, options)
         })
     }
 
@@ -525,16 +527,51 @@ impl Scene {
         options: &PlaceOptions,
     ) -> Result<Placement> {
         self.traced(|scene, trace| {
-            let (bvh, surfaces, _) = scene.placement_inputs(trace)?;
-            mesh::place_on_ray(&bvh, &surfaces, ray, size_m, yaw_rad, options)
+            let (bvh, surfaces, camera, confidence) = scene.placement_inputs(trace)?;
+            let scene = PlacementScene {
+                bvh: &bvh,
+                camera: &camera,
+                surfaces: &surfaces,
+                confidence: confidence.as_ref().map(DepthConfidence::raster),
+            };
+            scene.place_on_ray(ray, size_m, yaw_rad, options)
         })
     }
 
-    fn placement_inputs(&mut self, trace: &mut Trace) -> Result<(Arc<Bvh>, Arc<Surfaces>, Camera)> {
+    fn placement_inputs(&mut self, trace: &mut Trace) -> Result<PlacementInputs> {
         let base = self.depth_and_intrinsics(trace)?;
         let bvh = self.bvh_traced(&base, trace)?;
         let surfaces = self.surfaces_traced(&base, trace)?;
-        Ok((bvh, surfaces, base.1))
+        let confidence = self.depth_confidence(trace)?;
+        Ok((bvh, surfaces, base.1, confidence))
+    }
+
+    /// The confidence that came with the depth: the host's, or the matcher's (0 on the holes it
+    /// filled); `None` for host depth without one. Both are versioned with the depth.
+    fn depth_confidence(&mut self, trace: &mut Trace) -> Result<Option<DepthConfidence>> {
+        Ok(match &self.host_depth.value {
+            Some(host) => host.confidence.clone().map(DepthConfidence::Host),
+            None => Some(DepthConfidence::Stereo(self.disparity_traced(trace)?)),
+        })
+    }
+}
+
+/// What placement works on: the mesh's ray queries, the surfaces, the camera and the depth's
+/// confidence.
+type PlacementInputs = (Arc<Bvh>, Arc<Surfaces>, Camera, Option<DepthConfidence>);
+
+/// The confidence that came with the depth, shared with the product that holds it.
+enum DepthConfidence {
+    Host(Arc<Raster<f32>>),
+    Stereo(Arc<Disparity>),
+}
+
+impl DepthConfidence {
+    fn raster(&self) -> &Raster<f32> {
+        match self {
+            DepthConfidence::Host(c) => c,
+            DepthConfidence::Stereo(d) => &d.confidence,
+        }
     }
 }
 
