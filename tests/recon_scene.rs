@@ -869,6 +869,35 @@ fn a_hit_on_filled_depth_snaps_onto_the_plane_holding_its_pixel() {
         height_error(p.base)
     );
 
+    // A larger slanted plane near the filled hit (noisy stereo's plane through a table and the
+    // floor behind it) is passed over: the object would lean with it.
+    let hit = pick(&bvh, &room.camera, pixel).unwrap();
+    let mut slanted = surfaces.clone();
+    let mut through = slanted.surfaces[0].clone();
+    through.normal = (glam::Quat::from_rotation_x(35f32.to_radians()) * room.up()).normalize();
+    // It meets the ray 10 % beyond the hit: too far for the usual snap, near enough for this one.
+    through.offset = through.normal.dot(hit.point * 1.1);
+    assert!(through.distance(hit.point).abs() > 0.03 * hit.point.length());
+    through.kind = SurfaceKind::Slanted;
+    through.polygon_image = vec![
+        Vec2::ZERO,
+        Vec2::new(320.0, 0.0),
+        Vec2::new(320.0, 240.0),
+        Vec2::new(0.0, 240.0),
+    ];
+    slanted.surfaces.insert(0, through);
+    let leaning = PlacementScene {
+        surfaces: &slanted,
+        ..trusting
+    };
+    let p = leaning.place(pixel, 0.3, 0.0, &options).unwrap();
+    assert_ne!(p.surface, Some(0));
+    assert!(
+        height_error(p.base).abs() < 0.01,
+        "{}",
+        height_error(p.base)
+    );
+
     // Without the confidence, or with the looser snap off, the hit stands where the fill put it.
     let blind = place(&bvh, &room.camera, &surfaces, pixel, 0.3, 0.0, &options).unwrap();
     assert_eq!(blind.surface, None);

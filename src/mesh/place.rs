@@ -13,8 +13,8 @@
 //! across a dark, textureless stretch of floor under a table (docs/reconstruction-eval.md, stop
 //! 47). There the hit says little, and the plane whose image extent holds the pixel is the better
 //! guess. Given the depth's confidence ([`PlacementScene::confidence`]), a hit on a pixel of
-//! confidence 0 that no plane takes by the usual rule snaps onto the largest plane whose image
-//! extent holds the pixel and whose intersection with the ray lies within
+//! confidence 0 that no plane takes by the usual rule snaps onto the largest level, vertical or
+//! overhead plane whose image extent holds the pixel and whose intersection with the ray lies within
 //! [`PlaceOptions::unmeasured_snap_tolerance`] of the hit's distance (25 % by default; fills 15–20 %
 //! off were measured). The price: an unmeasured pixel of a low object in front of a plane (within
 //! a quarter of its distance) is taken for the plane, where its depth was a guess either way.
@@ -23,7 +23,7 @@
 use glam::{Mat3, Mat4, Vec2, Vec3};
 
 use super::bvh::{camera_ray, Bvh, Hit, Ray};
-use super::surfaces::{SupportSurface, Surfaces};
+use super::surfaces::{SupportSurface, SurfaceKind, Surfaces};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::image::Raster;
@@ -383,8 +383,8 @@ fn snap_measured(
 }
 
 /// The plane a hit on filled depth (seen at image position `pixel`) snaps onto: the largest of the
-/// planes whose image extent holds the pixel and whose intersection with the ray lies within
-/// `tolerance` × the hit's distance of the hit (module documentation).
+/// level, vertical or overhead planes whose image extent holds the pixel and whose intersection
+/// with the ray lies within `tolerance` × the hit's distance of the hit (module documentation).
 fn snap_unmeasured(
     surfaces: &Surfaces,
     ray: &Ray,
@@ -394,12 +394,15 @@ fn snap_unmeasured(
 ) -> Option<(usize, Vec3)> {
     let distance = (hit.point - ray.origin).length();
     // Surfaces come largest first. The nearest plane to the hit would follow the fill's own
-    // error: on `clutter`'s floor under the table it took a slanted plane through the objects.
+    // error: on `clutter`'s floor under the table it took a slanted plane through the table and
+    // the floor. Slanted planes are left out: on noisy stereo they are mostly such planes through
+    // several surfaces (`clutter` has one tilted 37° ranked third, `room` one tilted 58° ranked
+    // second), and an object stood on one leans with it.
     surfaces
         .surfaces
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.contains_pixel(pixel))
+        .filter(|(_, s)| s.kind != SurfaceKind::Slanted && s.contains_pixel(pixel))
         .find_map(|(i, s)| {
             let point = ray_meets_plane(ray, s)?;
             let gap = ((point - ray.origin).length() - distance).abs();
