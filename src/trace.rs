@@ -217,10 +217,16 @@ impl Trace {
         self.stages.iter().find(|s| s.name == name)
     }
 
-    /// Appends another trace's records and warnings.
+    /// Appends another trace's records, and those of its warnings this trace does not hold yet:
+    /// a host (or the CLI) that merges the traces of several calls gets each warning once, where
+    /// every call that reuses a product warns about it again (the lighting's fallback, say).
     pub fn extend(&mut self, other: Trace) {
         self.stages.extend(other.stages);
-        self.warnings.extend(other.warnings);
+        for warning in other.warnings {
+            if !self.warnings.contains(&warning) {
+                self.warnings.push(warning);
+            }
+        }
     }
 
     /// The report of this trace (see the module documentation for its shape).
@@ -296,6 +302,24 @@ mod tests {
         if cfg!(target_os = "linux") {
             assert!(json["peak_rss_mb"].as_f64().unwrap() > 0.0);
         }
+    }
+
+    #[test]
+    fn merged_traces_hold_each_warning_once() {
+        let call = |warnings: &[&str]| {
+            let mut t = Trace::new();
+            t.record("lighting", StageStatus::Reused, 0.0, "");
+            for w in warnings {
+                t.warn(*w);
+            }
+            t
+        };
+        let mut merged = Trace::new();
+        merged.extend(call(&["fallback"]));
+        merged.extend(call(&["fallback", "no surfaces"]));
+        merged.extend(call(&["fallback"]));
+        assert_eq!(merged.warnings(), ["fallback", "no surfaces"]);
+        assert_eq!(merged.stages().len(), 3);
     }
 
     #[test]
