@@ -283,19 +283,17 @@ fn stand_on_ray(
     let snapped = snap_measured(surfaces, ray, &hit, options.snap_tolerance).or_else(|| {
         let (camera, confidence) = confidence?;
         let (x, y, _) = camera.project_to_pixel(hit.point)?;
-        let measured = confidence.pixels()[y * confidence.width() + x] > 0.0;
+        if *confidence.get(x, y) > 0.0 {
+            return None;
+        }
         let (pixel, _) = camera.project(hit.point)?;
-        (!measured)
-            .then(|| {
-                snap_unmeasured(
-                    surfaces,
-                    ray,
-                    &hit,
-                    pixel,
-                    options.unmeasured_snap_tolerance,
-                )
-            })
-            .flatten()
+        snap_unmeasured(
+            surfaces,
+            ray,
+            &hit,
+            pixel,
+            options.unmeasured_snap_tolerance,
+        )
     });
     let (surface, base, normal) = match snapped {
         Some((i, p)) => (Some(i), p, surfaces.surfaces[i].normal),
