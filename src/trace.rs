@@ -244,6 +244,16 @@ impl Trace {
     }
 }
 
+/// Runs `f` and appends its wall-clock time to `parts` as `name`, in milliseconds: how a stage
+/// times its own parts for [`Trace::record_parts`] (the matcher's `StereoStats::timings`, the
+/// lighting estimate's `timings`).
+pub(crate) fn time_part<T>(parts: &mut Vec<(String, f64)>, name: &str, f: impl FnOnce() -> T) -> T {
+    let start = Instant::now();
+    let value = f();
+    parts.push((name.to_string(), start.elapsed().as_secs_f64() * 1e3));
+    value
+}
+
 /// The JSON report of a call (see the module documentation).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {

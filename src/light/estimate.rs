@@ -1,8 +1,6 @@
 //! The whole illumination estimate in one call: shadow mask, in-view sources, fitted lights and
 //! the environment around the insertion point, from a photo with depth (and normals when known).
 
-use std::time::Instant;
-
 use glam::Vec3;
 
 use super::environment::{Environment, EnvironmentOptions, PhotoReprojection};
@@ -16,6 +14,7 @@ use super::sources::{detect_sources, SourceOptions};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::image::Raster;
+use crate::trace::time_part;
 
 /// Options of [`estimate_lighting`]: one set per stage.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -52,14 +51,6 @@ pub struct LightingEstimate {
     /// `lighting.reprojection`, `lighting.relight` (not after a fallback), `lighting.calibration`,
     /// `lighting.environment`.
     pub timings: Vec<(String, f64)>,
-}
-
-/// Runs `f` and appends its wall-clock time to `timings` as `name`, in milliseconds.
-fn timed<T>(timings: &mut Vec<(String, f64)>, name: &str, f: impl FnOnce() -> T) -> T {
-    let start = Instant::now();
-    let value = f();
-    timings.push((name.to_string(), start.elapsed().as_secs_f64() * 1e3));
-    value
 }
 
 /// Where to put the environment when the caller names no point: the median point of the pixels
@@ -207,18 +198,18 @@ pub fn estimate_lighting(
             check_same("normal map", photo, n)?;
             n.clone()
         }
-        None => timed(&mut timings, "lighting.normals", || {
+        None => time_part(&mut timings, "lighting.normals", || {
             normals_from_depth(depth, camera, 0.05)
         })?,
     };
     let min_region = (photo.len() / 2000).max(20);
-    let regions = timed(&mut timings, "lighting.regions", || {
+    let regions = time_part(&mut timings, "lighting.regions", || {
         continuity_regions(depth, Some(&normals), 0.04, 25.0, min_region)
     })?;
-    let mask = timed(&mut timings, "lighting.mask", || {
+    let mask = time_part(&mut timings, "lighting.mask", || {
         shadow_mask(photo, Some(&regions), &options.shadow)
     })?;
-    let sources = timed(&mut timings, "lighting.sources", || {
+    let sources = time_part(&mut timings, "lighting.sources", || {
         detect_sources(
             photo,
             Some(depth),
@@ -250,7 +241,7 @@ pub fn estimate_lighting(
             *regions.get(x, y)
         }
     });
-    let fit = timed(&mut timings, "lighting.fit", || {
+    let fit = time_part(&mut timings, "lighting.fit", || {
         fit_lights(
             &FitInputs {
                 photo,
@@ -270,7 +261,7 @@ pub fn estimate_lighting(
     })?;
     // One ray march from the insertion point serves both the ambient calibration and the
     // environment handed out.
-    let reprojection = timed(&mut timings, "lighting.reprojection", || {
+    let reprojection = time_part(&mut timings, "lighting.reprojection", || {
         PhotoReprojection::new(
             photo,
             Some(depth),
@@ -284,7 +275,7 @@ pub fn estimate_lighting(
     let shading = if fit.fallback_used {
         None
     } else {
-        Some(timed(&mut timings, "lighting.relight", || {
+        Some(time_part(&mut timings, "lighting.relight", || {
             proxy_shading(
                 &reprojection,
                 depth,
@@ -295,7 +286,7 @@ pub fn estimate_lighting(
             )
         })?)
     };
-    let fit = timed(&mut timings, "lighting.calibration", || {
+    let fit = time_part(&mut timings, "lighting.calibration", || {
         calibrate_to_environment(
             fit,
             photo,
@@ -306,7 +297,7 @@ pub fn estimate_lighting(
             &options.environment,
         )
     })?;
-    let environment = timed(&mut timings, "lighting.environment", || {
+    let environment = time_part(&mut timings, "lighting.environment", || {
         Environment::from_reprojection(
             photo,
             &reprojection,

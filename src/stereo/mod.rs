@@ -99,11 +99,7 @@ pub struct StereoStats {
 
 impl StereoStats {
     fn time<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
-        let start = Instant::now();
-        let v = f();
-        self.timings
-            .push((name.to_string(), start.elapsed().as_secs_f64() * 1e3));
-        v
+        crate::trace::time_part(&mut self.timings, name, f)
     }
 }
 
