@@ -502,16 +502,7 @@ impl Scene {
         yaw_rad: f32,
         options: &PlaceOptions,
     ) -> Result<Placement> {
-        self.traced(|scene, trace| {
-            let (bvh, surfaces, camera, confidence) = scene.placement_inputs(trace)?;
-            let scene = PlacementScene {
-                bvh: &bvh,
-                camera: &camera,
-                surfaces: &surfaces,
-                confidence: confidence.as_ref().map(DepthConfidence::raster),
-            };
-            scene.place(pixel, size_m, yaw_rad, options)
-        })
+        self.placing(|scene| scene.place(pixel, size_m, yaw_rad, options))
     }
 
     /// [`Scene::place`] for a host's own ray in the camera (= world) frame
@@ -526,24 +517,27 @@ impl Scene {
         yaw_rad: f32,
         options: &PlaceOptions,
     ) -> Result<Placement> {
-        self.traced(|scene, trace| {
-            let (bvh, surfaces, camera, confidence) = scene.placement_inputs(trace)?;
-            let scene = PlacementScene {
-                bvh: &bvh,
-                camera: &camera,
-                surfaces: &surfaces,
-                confidence: confidence.as_ref().map(DepthConfidence::raster),
-            };
-            scene.place_on_ray(ray, size_m, yaw_rad, options)
-        })
+        self.placing(|scene| scene.place_on_ray(ray, size_m, yaw_rad, options))
     }
 
-    fn placement_inputs(&mut self, trace: &mut Trace) -> Result<PlacementInputs> {
-        let base = self.depth_and_intrinsics(trace)?;
-        let bvh = self.bvh_traced(&base, trace)?;
-        let surfaces = self.surfaces_traced(&base, trace)?;
-        let confidence = self.depth_confidence(trace)?;
-        Ok((bvh, surfaces, base.1, confidence))
+    /// Runs `place` on what placement works on: the mesh's ray queries, the surfaces, the camera
+    /// and the depth's confidence, computed or reused in one traced call.
+    fn placing(
+        &mut self,
+        place: impl FnOnce(&PlacementScene) -> Result<Placement>,
+    ) -> Result<Placement> {
+        self.traced(|scene, trace| {
+            let base = scene.depth_and_intrinsics(trace)?;
+            let bvh = scene.bvh_traced(&base, trace)?;
+            let surfaces = scene.surfaces_traced(&base, trace)?;
+            let confidence = scene.depth_confidence(trace)?;
+            place(&PlacementScene {
+                bvh: &bvh,
+                camera: &base.1,
+                surfaces: &surfaces,
+                confidence: confidence.as_ref().map(DepthConfidence::raster),
+            })
+        })
     }
 
     /// The confidence that came with the depth: the host's, or the matcher's (0 on the holes it
@@ -555,10 +549,6 @@ impl Scene {
         })
     }
 }
-
-/// What placement works on: the mesh's ray queries, the surfaces, the camera and the depth's
-/// confidence.
-type PlacementInputs = (Arc<Bvh>, Arc<Surfaces>, Camera, Option<DepthConfidence>);
 
 /// The confidence that came with the depth, shared with the product that holds it.
 enum DepthConfidence {
