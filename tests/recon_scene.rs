@@ -844,6 +844,10 @@ fn a_hit_on_filled_depth_snaps_onto_the_plane_holding_its_pixel() {
     };
     let height_error = |base: Vec3| ((to_world * base).y - FLOOR_Y) / spot.length();
     let options = PlaceOptions::default();
+    // The surface a placement at the pixel snapped onto, if any.
+    let snapped_by = |scene: &PlacementScene, options: &PlaceOptions| {
+        scene.place(pixel, 0.3, 0.0, options).unwrap().surface
+    };
 
     let (bvh, confidence) = filled_by(0.85);
     let trusting = PlacementScene {
@@ -910,7 +914,7 @@ fn a_hit_on_filled_depth_snaps_onto_the_plane_holding_its_pixel() {
         unmeasured_snap_tolerance: 0.0,
         ..options
     };
-    assert_eq!(trusting.place(pixel, 0.3, 0.0, &off).unwrap().surface, None);
+    assert_eq!(snapped_by(&trusting, &off), None);
 
     // Measured depth there is an object on the floor, not the floor: it keeps its hit.
     let measured = Raster::from_fn(320, 240, |_, _| 1.0f32);
@@ -918,10 +922,7 @@ fn a_hit_on_filled_depth_snaps_onto_the_plane_holding_its_pixel() {
         confidence: Some(&measured),
         ..trusting
     };
-    assert_eq!(
-        measuring.place(pixel, 0.3, 0.0, &options).unwrap().surface,
-        None
-    );
+    assert_eq!(snapped_by(&measuring, &options), None);
 
     // A fill far nearer than any plane holding the pixel (40 %) is not snapped either.
     let (bvh, confidence) = filled_by(0.6);
@@ -931,10 +932,7 @@ fn a_hit_on_filled_depth_snaps_onto_the_plane_holding_its_pixel() {
         surfaces: &surfaces,
         confidence: Some(&confidence),
     };
-    assert_eq!(
-        far_off.place(pixel, 0.3, 0.0, &options).unwrap().surface,
-        None
-    );
+    assert_eq!(snapped_by(&far_off, &options), None);
 
     // A confidence map of another size than the camera's is not used.
     let small = Raster::from_fn(10, 10, |_, _| 0.0f32);
@@ -942,10 +940,7 @@ fn a_hit_on_filled_depth_snaps_onto_the_plane_holding_its_pixel() {
         confidence: Some(&small),
         ..trusting
     };
-    assert_eq!(
-        mismatched.place(pixel, 0.3, 0.0, &options).unwrap().surface,
-        None
-    );
+    assert_eq!(snapped_by(&mismatched, &options), None);
 
     // A bad tolerance is an error.
     let bad = PlaceOptions {
