@@ -193,9 +193,14 @@ impl Trace {
         value
     }
 
-    /// Adds a warning (a repaired input, a fallback taken, …).
+    /// Adds a warning (a repaired input, a fallback taken, …), unless this trace holds it already:
+    /// a call that reaches a product twice (the lighting, through the lights and then the
+    /// environment) warns about it once, and the observer hears it once.
     pub fn warn(&mut self, message: impl Into<String>) {
         let message = message.into();
+        if self.warnings.contains(&message) {
+            return;
+        }
         if let Some(o) = &self.observer {
             o.0.warning(&message);
         }
@@ -217,9 +222,10 @@ impl Trace {
         self.stages.iter().find(|s| s.name == name)
     }
 
-    /// Appends another trace's records, and those of its warnings this trace does not hold yet:
-    /// a host (or the CLI) that merges the traces of several calls gets each warning once, where
-    /// every call that reuses a product warns about it again (the lighting's fallback, say).
+    /// Appends another trace's records, and those of its warnings this trace does not hold yet
+    /// (see [`Trace::warn`]): a host (or the CLI) that merges the traces of several calls gets
+    /// each warning once, where every call that reuses a product warns about it again (the
+    /// lighting's fallback, say).
     pub fn extend(&mut self, other: Trace) {
         self.stages.extend(other.stages);
         for warning in other.warnings {
@@ -324,6 +330,11 @@ mod tests {
             }
             t
         };
+        let mut once = Trace::new();
+        once.warn("fallback");
+        once.warn("fallback");
+        assert_eq!(once.warnings(), ["fallback"]);
+
         let mut merged = Trace::new();
         merged.extend(call(&["fallback"]));
         merged.extend(call(&["fallback", "no surfaces"]));

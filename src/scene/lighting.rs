@@ -214,7 +214,7 @@ impl Scene {
         trace.record_parts("lighting", &estimate.timings);
         const FALLBACK: &str =
             "lighting: the photo's shading is not explained by any light; using one light above the scene";
-        if estimate.fit.fallback_used && !trace.warnings().iter().any(|w| w == FALLBACK) {
+        if estimate.fit.fallback_used {
             trace.warn(FALLBACK);
         }
         Ok(estimate)
