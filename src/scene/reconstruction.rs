@@ -383,12 +383,14 @@ impl Scene {
         let versions = [self.grid_mesh.generation, self.surfaces.generation];
         let options = self.surface_options.value.unwrap_or_default();
         let camera = base.1;
+        let confidence = self.depth_confidence(trace)?;
         self.snapped_mesh
             .get_or_compute("mesh.snap", &versions, trace, |_| {
                 let mut mesh = (*grid).clone();
-                surfaces.snap_mesh_normals(
+                surfaces.snap_mesh_normals_with_confidence(
                     &mut mesh,
                     &camera,
+                    confidence.as_ref().map(DepthConfidence::raster),
                     options.membership_tolerance(),
                     options.membership_normal_tolerance_deg(),
                 );
