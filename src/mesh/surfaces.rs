@@ -467,10 +467,9 @@ impl Surfaces {
                 *c.get(x, y) <= 0.0
             })
         };
-        let tests = self.normal_tests(mesh, size, distance_tolerance, inverse_depth, max_angle_deg);
-        let passes = |i: usize, own: Vec3, s: &SupportSurface| {
-            tests[i].is_none_or(|min_cos| own.dot(s.normal) >= min_cos)
-        };
+        let min_cos = max_angle_deg.to_radians().cos();
+        let dropped =
+            self.angle_tests_dropped(mesh, size, distance_tolerance, inverse_depth, min_cos);
         let mut replaced = 0;
         for ((position, normal), uv) in mesh
             .positions
@@ -483,14 +482,12 @@ impl Surfaces {
             let own = Vec3::from(*normal);
             let on = filled(pixel)
                 .then(|| {
-                    self.nearest_holding(pixel, point, UNMEASURED_TOLERANCE, 0.0, |i, _| {
-                        tests[i].is_none()
-                    })
+                    self.nearest_holding(pixel, point, UNMEASURED_TOLERANCE, 0.0, |i, _| dropped[i])
                 })
                 .flatten()
                 .or_else(|| {
                     self.nearest_holding(pixel, point, distance_tolerance, inverse_depth, |i, s| {
-                        passes(i, own, s)
+                        dropped[i] || own.dot(s.normal) >= min_cos
                     })
                 });
             if let Some(i) = on {
@@ -504,18 +501,18 @@ impl Surfaces {
         replaced
     }
 
-    /// Per surface, the cosine a vertex normal must reach to take the surface's normal, or
-    /// `None` where the angle test is dropped ([`Surfaces::snap_mesh_normals`], "Where the
-    /// normals are noise").
-    fn normal_tests(
+    /// Per surface, whether its angle test is dropped ([`Surfaces::snap_mesh_normals`], "Where
+    /// the normals are noise"): it is level, vertical or overhead, and the normals of the
+    /// vertices on it scatter about their mean direction by more than the test's angle (cosine
+    /// `min_cos`) at the median.
+    fn angle_tests_dropped(
         &self,
         mesh: &SceneMesh,
         size: Vec2,
         distance_tolerance: f32,
         inverse_depth: f32,
-        max_angle_deg: f32,
-    ) -> Vec<Option<f32>> {
-        let min_cos = max_angle_deg.to_radians().cos();
+        min_cos: f32,
+    ) -> Vec<bool> {
         let mut normals = vec![Vec::new(); self.surfaces.len()];
         for ((position, normal), uv) in mesh.positions.iter().zip(&mesh.normals).zip(&mesh.uvs) {
             let point = Vec3::from(*position);
@@ -531,7 +528,7 @@ impl Surfaces {
         }
         normals
             .into_iter()
-            .map(|normals| (median_spread_cos(&normals) >= min_cos).then_some(min_cos))
+            .map(|normals| median_spread_cos(&normals) < min_cos)
             .collect()
     }
 }
