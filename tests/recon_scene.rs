@@ -1215,8 +1215,8 @@ fn under_heavy_noise_mesh_normals_snap_within_the_depths_own_noise() {
 }
 
 /// The mesh with each normal turned by an angle drawn uniformly up to `max_deg`, about an axis
-/// across it drawn at random: normals that agree on no direction, as on a 16-spp stereo floor
-/// (41–44° about their mean on `clutter`'s and `window`'s).
+/// across it drawn at random: normals fitted over filled depth, which agree on no direction
+/// (41–44° about their mean on the floors of the 16-spp `clutter` and `window` renders).
 fn with_normals_scattered(mesh: &SceneMesh, max_deg: f32, seed: u64) -> SceneMesh {
     let mut unit = uniform(seed);
     let mut scattered = mesh.clone();
@@ -1232,7 +1232,7 @@ fn with_normals_scattered(mesh: &SceneMesh, max_deg: f32, seed: u64) -> SceneMes
 }
 
 /// Median angle (degrees) to the room's up of the normals of `mesh`'s vertices well inside
-/// `label`'s pixels.
+/// `label`'s pixels, among the pixels `keep` takes.
 fn median_tilt(
     room: &Room,
     mesh: &SceneMesh,
@@ -1255,66 +1255,71 @@ fn median_tilt(
     tilts[tilts.len() / 2]
 }
 
+/// Confidence 0 on the pixels `filled` takes, 1 elsewhere, at the room's size.
+fn confidence_where(room: &Room, filled: impl Fn(usize, usize) -> bool) -> Raster<f32> {
+    let (w, h) = (room.depth.width(), room.depth.height());
+    Raster::from_fn(w, h, |x, y| if filled(x, y) { 0.0 } else { 1.0 })
+}
+
 #[test]
-fn where_a_surfaces_normals_agree_on_no_direction_its_angle_test_is_dropped() {
+fn on_a_surface_the_matcher_mostly_filled_the_angle_test_is_dropped() {
     let room = room(320, 240, 280.0);
     let clean = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
     let found = surfaces_of(&room, &clean);
     let options = SurfaceOptions::default();
-    let snapped = |surfaces: &Surfaces, mesh: &SceneMesh| {
-        let mut snapped = mesh.clone();
-        surfaces.snap_mesh_normals(
+    // Turned by up to 80° (40° at the median): the 30° test refuses most of the floor's vertices.
+    let noisy = with_normals_scattered(&clean, 80.0, 7);
+    let floor_tilt = |surfaces: &Surfaces,
+                      confidence: Option<&Raster<f32>>,
+                      keep: &dyn Fn(usize, usize) -> bool| {
+        let mut snapped = noisy.clone();
+        surfaces.snap_mesh_normals_with_confidence(
             &mut snapped,
             &room.camera,
+            confidence,
             options.membership_tolerance(),
             options.membership_normal_tolerance_deg(),
         );
-        snapped
+        median_tilt(&room, &snapped, Label::Floor, keep)
     };
     let all = |_: usize, _: usize| true;
-    // Turned by up to 80° (40° at the median): the 30° test would refuse most of the floor's and
-    // the table top's own vertices.
-    let noisy = with_normals_scattered(&clean, 80.0, 7);
-    for label in [Label::Floor, Label::TableTop] {
-        let before = median_tilt(&room, &noisy, label, all);
-        let after = median_tilt(&room, &snapped(&found, &noisy), label, all);
-        assert!(
-            before > 35.0 && after < 0.5,
-            "{label:?}: {before}° → {after}°"
-        );
+    let before = median_tilt(&room, &noisy, Label::Floor, all);
+    assert!(before > 35.0, "{before}°");
+    // Two thirds of the floor filled (every column but each third): every floor vertex, the
+    // measured ones too, takes the plane's normal.
+    let mostly = confidence_where(&room, |x, y| {
+        *room.labels.get(x, y) == Label::Floor && !x.is_multiple_of(3)
+    });
+    let measured_columns = |x: usize, _: usize| x.is_multiple_of(3);
+    for (what, keep) in [
+        ("all", &all as &dyn Fn(usize, usize) -> bool),
+        ("measured", &measured_columns),
+    ] {
+        let after = floor_tilt(&found, Some(&mostly), keep);
+        assert!(after < 0.5, "{what} floor vertices: {before}° → {after}°");
     }
-    // Up to 40° (20° at the median): they agree, and the test stays. So it does for normals
-    // that agree on another direction than the plane's (the test above with normals turned).
-    let mild = with_normals_scattered(&clean, 40.0, 7);
-    let snapped_mild = snapped(&found, &mild);
-    let refused = (0..mild.vertex_count())
-        .filter(|&k| {
-            let (x, y) = pixel_of(&room, mild.uvs[k]);
-            let tilt = Vec3::from(mild.normals[k])
-                .angle_between(room.up())
-                .to_degrees();
-            *room.labels.get(x, y) == Label::Floor && interior(&room, x, y, 4) && tilt > 31.0
-        })
-        .filter(|&k| snapped_mild.normals[k] == mild.normals[k])
-        .count();
-    assert!(
-        refused > 100,
-        "{refused} floor vertices beyond 30° kept their normals"
-    );
-    // A slanted surface keeps the test however its normals scatter: on noisy stereo such planes
-    // are mostly fitted through several surfaces.
+    // A third filled, or no confidence: the test stays, and most keep their own normals.
+    let partly = confidence_where(&room, |x, y| {
+        *room.labels.get(x, y) == Label::Floor && x.is_multiple_of(3)
+    });
+    for (what, confidence) in [("a third filled", Some(&partly)), ("no confidence", None)] {
+        let kept = floor_tilt(&found, confidence, &all);
+        assert!(kept > 20.0, "{what}: {kept}°");
+    }
+    // A slanted surface keeps the test however much of it was filled: on noisy stereo such
+    // planes are mostly fitted through several surfaces.
     let mut slanted = found.clone();
     for s in &mut slanted.surfaces {
         s.kind = SurfaceKind::Slanted;
     }
-    let kept = median_tilt(&room, &snapped(&slanted, &noisy), Label::Floor, all);
+    let kept = floor_tilt(&slanted, Some(&mostly), &all);
     assert!(kept > 20.0, "floor under a slanted label: {kept}°");
 }
 
 #[test]
-fn a_filled_vertex_on_a_surface_of_noisy_normals_takes_the_plane_within_a_quarter_of_its_depth() {
-    // A patch of floor filled 15 % too near (as under `clutter`'s table), far beyond the 2 %
-    // within which a measured vertex lies on the plane, under normals that agree on nothing.
+fn a_filled_vertex_on_a_mostly_filled_surface_takes_the_plane_within_a_quarter_of_its_depth() {
+    // The whole floor filled, and a patch of it 15 % too near (as under `clutter`'s table): far
+    // beyond the 2 % within which a measured vertex lies on the plane.
     let room = room(320, 240, 280.0);
     let clean = SceneMesh::from_depth(&room.depth, &room.camera, &MeshOptions::default()).unwrap();
     let found = surfaces_of(&room, &clean);
@@ -1322,7 +1327,7 @@ fn a_filled_vertex_on_a_surface_of_noisy_normals_takes_the_plane_within_a_quarte
     let pixel = room.camera.project(spot).unwrap().0;
     let (cx, cy) = (pixel.x as usize, pixel.y as usize);
     let in_patch = |x: usize, y: usize| x.abs_diff(cx) <= 12 && y.abs_diff(cy) <= 12;
-    let confidence = Raster::from_fn(320, 240, |x, y| if in_patch(x, y) { 0.0f32 } else { 1.0 });
+    let floor_filled = confidence_where(&room, |x, y| *room.labels.get(x, y) == Label::Floor);
     let options = SurfaceOptions::default();
     let patch_tilt = |scale: f32, confidence: Option<&Raster<f32>>| {
         let mut depth = room.depth.clone();
@@ -1342,17 +1347,19 @@ fn a_filled_vertex_on_a_surface_of_noisy_normals_takes_the_plane_within_a_quarte
         );
         median_tilt(&room, &noisy, Label::Floor, in_patch)
     };
-    let filled = patch_tilt(0.85, Some(&confidence));
+    let filled = patch_tilt(0.85, Some(&floor_filled));
     assert!(filled < 0.5, "filled patch: {filled}°");
-    // Without the confidence, or where the depth was measured, it is an object before the floor.
+    // Without the confidence, or where the patch was measured, it is an object before the floor.
     let blind = patch_tilt(0.85, None);
-    let measured = Raster::from_fn(320, 240, |_, _| 1.0f32);
-    let measuring = patch_tilt(0.85, Some(&measured));
+    let patch_measured = confidence_where(&room, |x, y| {
+        *room.labels.get(x, y) == Label::Floor && !in_patch(x, y)
+    });
+    let measuring = patch_tilt(0.85, Some(&patch_measured));
     // A map of another size than the camera's is not used.
     let small = Raster::from_fn(10, 10, |_, _| 0.0f32);
     let mismatched = patch_tilt(0.85, Some(&small));
     // Filled 60 % too near, it lies beyond a quarter of its depth off the floor.
-    let far_off = patch_tilt(0.4, Some(&confidence));
+    let far_off = patch_tilt(0.4, Some(&floor_filled));
     for (what, tilt) in [
         ("without confidence", blind),
         ("measured", measuring),

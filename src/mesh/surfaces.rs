@@ -37,7 +37,7 @@
 //! members may lie twice as far off it as its inliers (`6·σ_w`); [`Surfaces`] keeps `σ_w`, so
 //! that [`Surfaces::snap_mesh_normals`] gives a vertex the plane's normal by the same allowance
 //! (its own normal must agree too, so that what stands on a surface keeps its normals, unless
-//! the normals on that surface scatter too much to tell anything apart).
+//! the matcher filled most of that surface and its normals tell nothing).
 //!
 //! ## Measured and filled depth
 //! Given the depth's confidence ([`detect_surfaces_with_confidence`]; the scene passes the stereo
@@ -130,8 +130,8 @@ impl SurfaceOptions {
     /// with these options, for [`Surfaces::snap_mesh_normals`]: twice `normal_tolerance_deg`, as
     /// [`SurfaceOptions::membership_tolerance`] is for distance (the inliers' own normals spread
     /// up to `normal_tolerance_deg`), and below 90° so that a box side standing on a floor does
-    /// not take the floor's normal (where the mesh's normals are not noise: see
-    /// [`Surfaces::snap_mesh_normals`]).
+    /// not take the floor's normal (unless the matcher filled most of the floor: see
+    /// [`Surfaces::snap_mesh_normals_with_confidence`]).
     pub fn membership_normal_tolerance_deg(&self) -> f32 {
         (2.0 * self.normal_tolerance_deg).min(MAX_SNAP_ANGLE_DEG)
     }
@@ -408,18 +408,8 @@ impl Surfaces {
     /// median normal error was 11.6° with that alone (1.2° with the noise; docs/
     /// reconstruction-eval.md, stop 34).
     ///
-    /// **Where the normals are noise.** A level, vertical or overhead surface whose own vertices'
-    /// normals (those within the distance allowance, in its polygon) scatter about their mean
-    /// direction by more than `max_angle_deg` at the median has the angle test dropped: they
-    /// agree on no direction, so the test refuses most of the surface's own vertices and cannot
-    /// tell them from those of what stands on it either. Normals that agree on a direction other
-    /// than the plane's (the sides of a large box within a floor's band) keep the test. On the
-    /// 16-spp renders of `clutter` and `window` the floors' vertices scatter by 41° and 44° about
-    /// their mean (`room`'s by 19°), and their median normal error stayed at 61° and 79° with the
-    /// test (docs/reconstruction-eval.md, stop 48). Slanted surfaces keep the test: on such depth
-    /// they are mostly planes through several surfaces, recognised by their normals alone.
-    /// [`Surfaces::snap_mesh_normals_with_confidence`] also reaches the vertices whose depth was
-    /// filled.
+    /// [`Surfaces::snap_mesh_normals_with_confidence`] does the same for a mesh whose depth was
+    /// partly filled, and uses what the confidence tells.
     pub fn snap_mesh_normals(
         &self,
         mesh: &mut SceneMesh,
@@ -438,12 +428,25 @@ impl Surfaces {
 
     /// [`Surfaces::snap_mesh_normals`] for a mesh whose depth came with a per-pixel confidence
     /// (the stereo matcher's, 0 on the holes it filled, or a host's; the camera's size, else not
-    /// used). A vertex whose pixel has confidence 0 may also lie up to [`UNMEASURED_TOLERANCE`]
-    /// × its depth off a surface whose angle test is dropped, and then takes the nearest such
-    /// surface: a fill across a dark stretch of floor can be 15–20 % off (docs/
-    /// reconstruction-eval.md, stop 47), far beyond the allowance of a measured point, and
-    /// where the normals are noise too the plane is the better guess. Otherwise it is judged as
-    /// a measured vertex.
+    /// used).
+    ///
+    /// **Where the matcher filled most of a surface.** The matcher fills what it could not
+    /// measure from the measurements around it, and on a noisy photo that can be most of a floor
+    /// (60–77 % of the floors' vertices on the 16-spp built-in renders). A normal fitted over
+    /// filled depth, or over a neighbourhood that is mostly filled, says nothing about the
+    /// surface: there the floors' vertex normals scattered by 41–44° about their mean, the angle
+    /// test refused most of them, and the floors' median normal error stayed at 61° and 79°
+    /// (`clutter`, `window`; docs/reconstruction-eval.md, stop 48). So:
+    /// - a level, vertical or overhead surface on which most vertices (those within its
+    ///   allowance, in its polygon) lie on filled depth has the angle test dropped;
+    /// - a filled vertex may also lie up to [`UNMEASURED_TOLERANCE`] × its depth off such a
+    ///   surface: a fill across a dark stretch of floor can be 15–20 % off (stop 47), far beyond
+    ///   a measured point's allowance;
+    /// - each vertex takes the nearest surface that holds it.
+    ///
+    /// Slanted surfaces keep the test: on such depth they are mostly planes through several
+    /// surfaces, recognised by their normals alone. Where most of a surface was measured, its
+    /// vertices are judged as [`Surfaces::snap_mesh_normals`] judges them.
     pub fn snap_mesh_normals_with_confidence(
         &self,
         mesh: &mut SceneMesh,
@@ -468,8 +471,10 @@ impl Surfaces {
             })
         };
         let min_cos = max_angle_deg.to_radians().cos();
-        let dropped =
-            self.angle_tests_dropped(mesh, size, distance_tolerance, inverse_depth, min_cos);
+        let dropped = match confidence {
+            Some(_) => self.mostly_filled(mesh, size, distance_tolerance, inverse_depth, filled),
+            None => vec![false; self.surfaces.len()],
+        };
         let mut replaced = 0;
         for ((position, normal), uv) in mesh
             .positions
@@ -501,34 +506,36 @@ impl Surfaces {
         replaced
     }
 
-    /// Per surface, whether its angle test is dropped ([`Surfaces::snap_mesh_normals`], "Where
-    /// the normals are noise"): it is level, vertical or overhead, and the normals of the
-    /// vertices on it scatter about their mean direction by more than the test's angle (cosine
-    /// `min_cos`) at the median.
-    fn angle_tests_dropped(
+    /// Per surface, whether it is level, vertical or overhead and most of the vertices on it
+    /// (within the allowance, in its polygon) lie on filled depth (`filled`, by pixel): its
+    /// angle test is dropped ([`Surfaces::snap_mesh_normals_with_confidence`]).
+    fn mostly_filled(
         &self,
         mesh: &SceneMesh,
         size: Vec2,
         distance_tolerance: f32,
         inverse_depth: f32,
-        min_cos: f32,
+        filled: impl Fn(Vec2) -> bool,
     ) -> Vec<bool> {
-        let mut normals = vec![Vec::new(); self.surfaces.len()];
-        for ((position, normal), uv) in mesh.positions.iter().zip(&mesh.normals).zip(&mesh.uvs) {
+        // Per surface: vertices on it, and how many of them are filled.
+        let mut counts = vec![(0usize, 0usize); self.surfaces.len()];
+        for (position, uv) in mesh.positions.iter().zip(&mesh.uvs) {
             let point = Vec3::from(*position);
             let pixel = Vec2::from(*uv) * size;
-            for (s, normals) in self.surfaces.iter().zip(&mut normals) {
+            let is_filled = filled(pixel);
+            for (s, (on, filled_on)) in self.surfaces.iter().zip(&mut counts) {
                 if s.kind != SurfaceKind::Slanted
                     && s.offness(pixel, point, distance_tolerance, inverse_depth)
                         .is_some()
                 {
-                    normals.push(Vec3::from(*normal));
+                    *on += 1;
+                    *filled_on += usize::from(is_filled);
                 }
             }
         }
-        normals
+        counts
             .into_iter()
-            .map(|normals| median_spread_cos(&normals) < min_cos)
+            .map(|(on, filled_on)| 2 * filled_on > on)
             .collect()
     }
 }
@@ -538,22 +545,6 @@ impl Surfaces {
 /// ([`Surfaces::snap_mesh_normals_with_confidence`]). A measured vertex may lie
 /// [`SurfaceOptions::membership_tolerance`] off (2 % by default) or within the depth's noise.
 pub const UNMEASURED_TOLERANCE: f32 = 0.25;
-
-/// The median cosine between unit vectors and their mean direction: 1 when they agree, lower
-/// the more they scatter; 1 for no vectors (nothing scatters), −1 for vectors that cancel out.
-fn median_spread_cos(vectors: &[Vec3]) -> f32 {
-    if vectors.is_empty() {
-        return 1.0;
-    }
-    let mean = vectors.iter().copied().sum::<Vec3>().normalize_or_zero();
-    if mean == Vec3::ZERO {
-        return -1.0;
-    }
-    let mut cosines: Vec<f32> = vectors.iter().map(|v| v.dot(mean)).collect();
-    let middle = cosines.len() / 2;
-    let (_, median, _) = cosines.select_nth_unstable_by(middle, f32::total_cmp);
-    *median
-}
 
 /// Largest angle (degrees) between a mesh normal and the surface normal it is replaced by.
 const MAX_SNAP_ANGLE_DEG: f32 = 60.0;
