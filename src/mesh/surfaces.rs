@@ -541,7 +541,7 @@ impl Surfaces {
 }
 
 /// How far off a surface's plane, as a fraction of its depth, a mesh vertex on filled depth may
-/// lie and still take the plane's normal where the surface's own normals are noise
+/// lie and still take the plane's normal, on a surface the matcher filled mostly
 /// ([`Surfaces::snap_mesh_normals_with_confidence`]). A measured vertex may lie
 /// [`SurfaceOptions::membership_tolerance`] off (2 % by default) or within the depth's noise.
 pub const UNMEASURED_TOLERANCE: f32 = 0.25;
