@@ -920,13 +920,17 @@ fn a_hit_on_filled_depth_snaps_onto_the_plane_holding_its_pixel() {
     };
     assert_eq!(snapped_by(&trusting, &off), None);
 
-    // Measured depth there is an object on the floor, not the floor: it keeps its hit.
+    // Measured depth there is an object on the floor, not the floor: it keeps its hit. A
+    // confidence map of another size than the camera's is not used.
     let measured = Raster::from_fn(320, 240, |_, _| 1.0f32);
-    let measuring = PlacementScene {
-        confidence: Some(&measured),
-        ..trusting
-    };
-    assert_eq!(snapped_by(&measuring, &options), None);
+    let small = Raster::from_fn(10, 10, |_, _| 0.0f32);
+    for confidence in [&measured, &small] {
+        let scene = PlacementScene {
+            confidence: Some(confidence),
+            ..trusting
+        };
+        assert_eq!(snapped_by(&scene, &options), None);
+    }
 
     // A fill far nearer than any plane holding the pixel (40 %) is not snapped either.
     let (bvh, confidence) = filled_by(0.6);
@@ -937,14 +941,6 @@ fn a_hit_on_filled_depth_snaps_onto_the_plane_holding_its_pixel() {
         confidence: Some(&confidence),
     };
     assert_eq!(snapped_by(&far_off, &options), None);
-
-    // A confidence map of another size than the camera's is not used.
-    let small = Raster::from_fn(10, 10, |_, _| 0.0f32);
-    let mismatched = PlacementScene {
-        confidence: Some(&small),
-        ..trusting
-    };
-    assert_eq!(snapped_by(&mismatched, &options), None);
 
     // A bad tolerance is an error.
     let bad = PlaceOptions {
