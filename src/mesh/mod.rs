@@ -10,9 +10,11 @@
 //! | [`surfaces`] | support planes (RANSAC + refinement) and the gravity "up" |
 //! | [`place`](mod@place) | transforms that stand an object on the surface under a pixel or a ray |
 //! | [`export`] | depth (PFM, 16-bit PNG mm), PLY, OBJ, GLB with the photo as texture |
+//! | `filled` | which pixels of the depth were filled, not measured, from its confidence |
 
 pub mod bvh;
 pub mod export;
+mod filled;
 pub mod grid;
 pub(crate) mod local_fit;
 pub mod place;

@@ -23,6 +23,7 @@
 use glam::{Mat3, Mat4, Vec2, Vec3};
 
 use super::bvh::{camera_ray, Bvh, Hit, Ray};
+use super::filled::FilledDepth;
 use super::surfaces::{SupportSurface, SurfaceKind, Surfaces};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
@@ -218,16 +219,12 @@ impl PlacementScene<'_> {
         yaw_rad: f32,
         options: &PlaceOptions,
     ) -> Result<Placement> {
-        let confidence = self
-            .confidence
-            .filter(|c| {
-                (c.width(), c.height()) == (self.camera.width as usize, self.camera.height as usize)
-            })
-            .map(|c| (self.camera, c));
+        let filled =
+            FilledDepth::for_camera(self.confidence, self.camera).map(|f| (self.camera, f));
         stand_on_ray(
             self.bvh,
             self.surfaces,
-            confidence,
+            filled,
             ray,
             size_m,
             yaw_rad,
@@ -236,12 +233,12 @@ impl PlacementScene<'_> {
     }
 }
 
-/// The placement of [`place_on_ray`]; `confidence` (with the camera it belongs to) lets a hit
-/// where the depth was filled snap by the looser rule of the module documentation.
+/// The placement of [`place_on_ray`]; `filled` (with the camera it belongs to) lets a hit where
+/// the depth was filled snap by the looser rule of the module documentation.
 fn stand_on_ray(
     bvh: &Bvh,
     surfaces: &Surfaces,
-    confidence: Option<(&Camera, &Raster<f32>)>,
+    filled: Option<(&Camera, FilledDepth)>,
     ray: &Ray,
     size_m: f32,
     yaw_rad: f32,
@@ -281,12 +278,13 @@ fn stand_on_ray(
 
     let dir = ray.direction.normalize();
     let snapped = snap_measured(surfaces, ray, &hit, options.snap_tolerance).or_else(|| {
-        let (camera, confidence) = confidence?;
-        let (x, y, _) = camera.project_to_pixel(hit.point)?;
-        if *confidence.get(x, y) > 0.0 {
+        let (camera, filled) = filled?;
+        // Only a hit inside the image has a confidence.
+        camera.project_to_pixel(hit.point)?;
+        let (pixel, _) = camera.project(hit.point)?;
+        if !filled.at(pixel) {
             return None;
         }
-        let (pixel, _) = camera.project(hit.point)?;
         snap_unmeasured(
             surfaces,
             ray,

@@ -75,7 +75,9 @@
 //! back to the camera's +Y (the image's "up", i.e. −image-y).
 
 use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
 
+use super::filled::FilledDepth;
 use super::SceneMesh;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
@@ -460,46 +462,44 @@ impl Surfaces {
         }
         let inverse_depth = MEMBERSHIP_SIGMAS * self.inverse_depth_noise;
         let size = Vec2::new(camera.width as f32, camera.height as f32);
-        let confidence = confidence
-            .filter(|c| (c.width(), c.height()) == (camera.width as usize, camera.height as usize));
-        // A UV of exactly 1 (the image's far edge) maps onto the last pixel.
-        let filled = |pixel: Vec2| {
-            confidence.is_some_and(|c| {
-                let x = (pixel.x.max(0.0) as usize).min(c.width() - 1);
-                let y = (pixel.y.max(0.0) as usize).min(c.height() - 1);
-                *c.get(x, y) <= 0.0
-            })
-        };
+        let filled_depth = FilledDepth::for_camera(confidence, camera);
+        let filled = |pixel: Vec2| filled_depth.is_some_and(|f| f.at(pixel));
         let min_cos = max_angle_deg.to_radians().cos();
-        let dropped = match confidence {
+        let dropped = match filled_depth {
             Some(_) => self.mostly_filled(mesh, size, distance_tolerance, inverse_depth, filled),
             None => vec![false; self.surfaces.len()],
         };
-        let mut replaced = 0;
-        for ((position, normal), uv) in mesh
+        let replaced: usize = mesh
             .positions
-            .iter()
-            .zip(mesh.normals.iter_mut())
-            .zip(&mesh.uvs)
-        {
-            let point = Vec3::from(*position);
-            let pixel = Vec2::from(*uv) * size;
-            let own = Vec3::from(*normal);
-            let on = filled(pixel)
-                .then(|| {
-                    self.nearest_holding(pixel, point, UNMEASURED_TOLERANCE, 0.0, |i, _| dropped[i])
-                })
-                .flatten()
-                .or_else(|| {
-                    self.nearest_holding(pixel, point, distance_tolerance, inverse_depth, |i, s| {
-                        dropped[i] || own.dot(s.normal) >= min_cos
+            .par_iter()
+            .zip(mesh.normals.par_iter_mut())
+            .zip(mesh.uvs.par_iter())
+            .map(|((position, normal), uv)| {
+                let point = Vec3::from(*position);
+                let pixel = Vec2::from(*uv) * size;
+                let own = Vec3::from(*normal);
+                let on = filled(pixel)
+                    .then(|| {
+                        self.nearest_holding(pixel, point, UNMEASURED_TOLERANCE, 0.0, |i, _| {
+                            dropped[i]
+                        })
                     })
-                });
-            if let Some(i) = on {
-                *normal = self.surfaces[i].normal.to_array();
-                replaced += 1;
-            }
-        }
+                    .flatten()
+                    .or_else(|| {
+                        self.nearest_holding(
+                            pixel,
+                            point,
+                            distance_tolerance,
+                            inverse_depth,
+                            |i, s| dropped[i] || own.dot(s.normal) >= min_cos,
+                        )
+                    });
+                on.map_or(0, |i| {
+                    *normal = self.surfaces[i].normal.to_array();
+                    1
+                })
+            })
+            .sum();
         if replaced > 0 {
             mesh.recompute_tangents_keeping_normals();
         }
@@ -515,24 +515,36 @@ impl Surfaces {
         size: Vec2,
         distance_tolerance: f32,
         inverse_depth: f32,
-        filled: impl Fn(Vec2) -> bool,
+        filled: impl Fn(Vec2) -> bool + Sync,
     ) -> Vec<bool> {
         // Per surface: vertices on it, and how many of them are filled.
-        let mut counts = vec![(0usize, 0usize); self.surfaces.len()];
-        for (position, uv) in mesh.positions.iter().zip(&mesh.uvs) {
-            let point = Vec3::from(*position);
-            let pixel = Vec2::from(*uv) * size;
-            let is_filled = filled(pixel);
-            for (s, (on, filled_on)) in self.surfaces.iter().zip(&mut counts) {
-                if s.kind != SurfaceKind::Slanted
-                    && s.offness(pixel, point, distance_tolerance, inverse_depth)
-                        .is_some()
-                {
-                    *on += 1;
-                    *filled_on += usize::from(is_filled);
+        let empty = || vec![(0usize, 0usize); self.surfaces.len()];
+        let counts = mesh
+            .positions
+            .par_iter()
+            .zip(mesh.uvs.par_iter())
+            .fold(empty, |mut counts, (position, uv)| {
+                let point = Vec3::from(*position);
+                let pixel = Vec2::from(*uv) * size;
+                let is_filled = filled(pixel);
+                for (s, (on, filled_on)) in self.surfaces.iter().zip(&mut counts) {
+                    if s.kind != SurfaceKind::Slanted
+                        && s.offness(pixel, point, distance_tolerance, inverse_depth)
+                            .is_some()
+                    {
+                        *on += 1;
+                        *filled_on += usize::from(is_filled);
+                    }
                 }
-            }
-        }
+                counts
+            })
+            .reduce(empty, |mut a, b| {
+                for (x, y) in a.iter_mut().zip(b) {
+                    x.0 += y.0;
+                    x.1 += y.1;
+                }
+                a
+            });
         counts
             .into_iter()
             .map(|(on, filled_on)| 2 * filled_on > on)
