@@ -33,6 +33,7 @@ pub use surfaces::{
 };
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 /// A triangle mesh of the photographed scene in the camera (= world) frame, metres.
 ///
@@ -152,68 +153,107 @@ pub(crate) fn normals_and_tangents(
     let mut normal_sum = vec![DVec3::ZERO; n];
     let mut tangent_sum = vec![DVec3::ZERO; n];
     let mut bitangent_sum = vec![DVec3::ZERO; n];
-    for tri in indices.chunks_exact(3) {
-        let [i0, i1, i2] = [tri[0] as usize, tri[1] as usize, tri[2] as usize];
-        let p0 = Vec3::from(positions[i0]).as_dvec3();
-        let e1 = Vec3::from(positions[i1]).as_dvec3() - p0;
-        let e2 = Vec3::from(positions[i2]).as_dvec3() - p0;
-        let cross = e1.cross(e2);
-        let len = cross.length();
-        if !(len.is_finite() && len > 0.0) {
-            continue;
-        }
-        // Weight by area, but in a scale-free way: normalise by the triangle's longest edge² so
-        // that f64 sums stay finite for any metric scale.
-        let scale = e1.length_squared().max(e2.length_squared());
-        let weighted = cross / scale;
-        // Tangent frame from UV gradients (Lengyel).
-        let (t, b) = if uvs.len() == n {
-            let uv0 = glam::Vec2::from(uvs[i0]).as_dvec2();
-            let d1 = glam::Vec2::from(uvs[i1]).as_dvec2() - uv0;
-            let d2 = glam::Vec2::from(uvs[i2]).as_dvec2() - uv0;
-            let det = d1.x * d2.y - d2.x * d1.y;
-            if det.abs() > 1e-300 {
-                let r = 1.0 / det;
-                (
-                    ((e1 * d2.y - e2 * d1.y) * r).normalize_or_zero(),
-                    ((e2 * d1.x - e1 * d2.x) * r).normalize_or_zero(),
-                )
-            } else {
-                (DVec3::ZERO, DVec3::ZERO)
+    // Each block's triangle terms are computed in parallel, then summed in triangle order, so
+    // the sums (and the result) are those of a serial pass, bit for bit; blocks bound the memory
+    // the terms take.
+    const BLOCK_TRIANGLES: usize = 1 << 16;
+    let mut terms = Vec::with_capacity(BLOCK_TRIANGLES.min(indices.len() / 3));
+    for block in indices.chunks(3 * BLOCK_TRIANGLES) {
+        block
+            .par_chunks_exact(3)
+            .map(|tri| triangle_terms(positions, uvs, [tri[0], tri[1], tri[2]]))
+            .collect_into_vec(&mut terms);
+        for (tri, terms) in block.chunks_exact(3).zip(&terms) {
+            let Some(t) = terms else {
+                continue;
+            };
+            for &i in tri {
+                let i = i as usize;
+                normal_sum[i] += t.weighted;
+                tangent_sum[i] += t.tangent;
+                bitangent_sum[i] += t.bitangent;
             }
+        }
+    }
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let towards_camera = (-Vec3::from(positions[i]).as_dvec3()).normalize_or(DVec3::Z);
+            let kept = given
+                .map(|g| Vec3::from(g[i]).as_dvec3())
+                .filter(|g| g.is_finite() && (g.length() - 1.0).abs() < 1e-3)
+                .map(|g| g.normalize());
+            let normal = kept
+                .or_else(|| normal_sum[i].try_normalize())
+                .unwrap_or(towards_camera);
+            // Gram–Schmidt; fall back to any perpendicular when UVs say nothing.
+            let t = tangent_sum[i] - normal * normal.dot(tangent_sum[i]);
+            let tangent = t
+                .try_normalize()
+                .unwrap_or_else(|| normal.any_orthonormal_vector());
+            let w = if normal.cross(tangent).dot(bitangent_sum[i]) < 0.0 {
+                -1.0
+            } else {
+                1.0
+            };
+            (
+                normal.as_vec3().to_array(),
+                tangent.as_vec3().extend(w as f32).to_array(),
+            )
+        })
+        .unzip()
+}
+
+/// What one triangle adds to each of its vertices in [`normals_and_tangents`].
+struct TriangleTerms {
+    /// Its normal weighted by area, scale-free.
+    weighted: DVec3,
+    /// Its UV-aligned tangent and bitangent, weighted by the same area.
+    tangent: DVec3,
+    bitangent: DVec3,
+}
+
+/// The terms of the triangle `[i0, i1, i2]`; `None` when it is degenerate (no area).
+fn triangle_terms(
+    positions: &[[f32; 3]],
+    uvs: &[[f32; 2]],
+    tri: [u32; 3],
+) -> Option<TriangleTerms> {
+    let [i0, i1, i2] = tri.map(|i| i as usize);
+    let p0 = Vec3::from(positions[i0]).as_dvec3();
+    let e1 = Vec3::from(positions[i1]).as_dvec3() - p0;
+    let e2 = Vec3::from(positions[i2]).as_dvec3() - p0;
+    let cross = e1.cross(e2);
+    let len = cross.length();
+    if !(len.is_finite() && len > 0.0) {
+        return None;
+    }
+    // Weight by area, but in a scale-free way: normalise by the triangle's longest edge² so
+    // that f64 sums stay finite for any metric scale.
+    let scale = e1.length_squared().max(e2.length_squared());
+    let weighted = cross / scale;
+    // Tangent frame from UV gradients (Lengyel).
+    let (t, b) = if uvs.len() == positions.len() {
+        let uv0 = glam::Vec2::from(uvs[i0]).as_dvec2();
+        let d1 = glam::Vec2::from(uvs[i1]).as_dvec2() - uv0;
+        let d2 = glam::Vec2::from(uvs[i2]).as_dvec2() - uv0;
+        let det = d1.x * d2.y - d2.x * d1.y;
+        if det.abs() > 1e-300 {
+            let r = 1.0 / det;
+            (
+                ((e1 * d2.y - e2 * d1.y) * r).normalize_or_zero(),
+                ((e2 * d1.x - e1 * d2.x) * r).normalize_or_zero(),
+            )
         } else {
             (DVec3::ZERO, DVec3::ZERO)
-        };
-        let area_weight = weighted.length();
-        for i in [i0, i1, i2] {
-            normal_sum[i] += weighted;
-            tangent_sum[i] += t * area_weight;
-            bitangent_sum[i] += b * area_weight;
         }
-    }
-    let mut normals = Vec::with_capacity(n);
-    let mut tangents = Vec::with_capacity(n);
-    for i in 0..n {
-        let towards_camera = (-Vec3::from(positions[i]).as_dvec3()).normalize_or(DVec3::Z);
-        let kept = given
-            .map(|g| Vec3::from(g[i]).as_dvec3())
-            .filter(|g| g.is_finite() && (g.length() - 1.0).abs() < 1e-3)
-            .map(|g| g.normalize());
-        let normal = kept
-            .or_else(|| normal_sum[i].try_normalize())
-            .unwrap_or(towards_camera);
-        // Gram–Schmidt; fall back to any perpendicular when UVs say nothing.
-        let t = tangent_sum[i] - normal * normal.dot(tangent_sum[i]);
-        let tangent = t
-            .try_normalize()
-            .unwrap_or_else(|| normal.any_orthonormal_vector());
-        let w = if normal.cross(tangent).dot(bitangent_sum[i]) < 0.0 {
-            -1.0
-        } else {
-            1.0
-        };
-        normals.push(normal.as_vec3().to_array());
-        tangents.push(tangent.as_vec3().extend(w as f32).to_array());
-    }
-    (normals, tangents)
+    } else {
+        (DVec3::ZERO, DVec3::ZERO)
+    };
+    let area_weight = weighted.length();
+    Some(TriangleTerms {
+        weighted,
+        tangent: t * area_weight,
+        bitangent: b * area_weight,
+    })
 }
