@@ -1152,8 +1152,9 @@ enum plx_status plx_scene_set_stereo_options(struct plx_scene *scene,
 // `scene` is a live scene; `out` is writable.
 enum plx_status plx_scene_disparity(struct plx_scene *scene, struct plx_float_view *out);
 
-// The matcher's confidence in [0, 1] per pixel (thesis eq. 3.5; filled pixels get 0). Same
-// computation, errors and lifetime as `plx_scene_disparity`.
+// The matcher's confidence in [0, 1] per pixel (thesis eq. 3.5; filled pixels get 0, and so
+// do pixels with nothing to match, where every disparity costs the same). Same computation,
+// errors and lifetime as `plx_scene_disparity`.
 //
 // # Safety
 // `scene` is a live scene; `out` is writable.

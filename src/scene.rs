@@ -16,6 +16,12 @@ use crate::image::{Image, ImageView, Raster};
 use crate::stereo::{self, Disparity, StereoOptions};
 use crate::trace::{Observer, StageStatus, Trace};
 
+/// Share of the pixels with nothing to match (`StereoStats::textureless_fraction`) beyond which
+/// the trace warns: most of the depth is then the matcher's guess. Photographs and the built-in
+/// renders have 0.2–0.3 % (the first column or two, where one disparity lies inside the right
+/// view); a flat pair has 100 %.
+const MOSTLY_TEXTURELESS: f32 = 0.5;
+
 /// A value set by the host, with the version it was set at (0 = never set).
 #[derive(Debug, Clone)]
 struct Input<T> {
@@ -480,6 +486,14 @@ impl Scene {
                 stereo::match_pair(&pair.left.view(), &right.view(), &options)
             })?;
         trace.record_parts("stereo", &disparity.stats.timings);
+        let textureless = disparity.stats.textureless_fraction;
+        if textureless > MOSTLY_TEXTURELESS {
+            trace.warn(format!(
+                "stereo: {:.0} % of the pixels have nothing to match (no texture): their depth is \
+                 a guess, with confidence 0",
+                textureless * 100.0
+            ));
+        }
         Ok(disparity)
     }
 

@@ -62,7 +62,8 @@ pub struct Disparity {
     /// only happens with `fill = false`.
     pub disparity: Raster<f32>,
     /// Confidence in [0, 1] from the uncertainty term `U_p` (eq. 3.5):
-    /// `1 / (1 + U_p / (paths · P1))`; filled pixels get 0.
+    /// `1 / (1 + U_p / (paths · P1))`; filled pixels get 0, and so do pixels with nothing to
+    /// match (every disparity costs the same; [`StereoStats::textureless_fraction`]).
     pub confidence: Raster<f32>,
     /// Timings and counts.
     pub stats: StereoStats,
@@ -76,13 +77,18 @@ pub struct StereoStats {
     /// `stereo.coarse`), `stereo.align` (measuring and undoing the residual misalignment),
     /// `stereo.cost` (census transform; per-row costs are computed inside aggregation and
     /// counted there), `stereo.noise` (the matches' cost floor, with `noise_adaptive_penalties`),
-    /// `stereo.aggregate`, `stereo.decide`, `stereo.speckle`, `stereo.refine`,
-    /// `stereo.fill`, `stereo.smooth`. Steps that did not run are absent.
+    /// `stereo.aggregate`, `stereo.decide`, `stereo.textureless`, `stereo.speckle`,
+    /// `stereo.refine`, `stereo.fill`, `stereo.smooth`. Steps that did not run are absent.
     pub timings: Vec<(String, f64)>,
     /// Total matching time, milliseconds (decoded images in, disparity out).
     pub total_ms: f64,
     /// Fraction of pixels without an estimate before filling (0–1).
     pub invalid_fraction: f32,
+    /// Fraction of pixels with nothing to match (0–1): every disparity searched costs the same,
+    /// as on a textureless stretch wider than the search (or one clipped to black or white).
+    /// Their disparity is what aggregation carried in, with confidence 0
+    /// (`refine::mark_textureless`).
+    pub textureless_fraction: f32,
     /// Peak bytes of the matcher's own working buffers (input images not counted).
     pub peak_working_bytes: u64,
     /// Vertical offset (pixels) and rotation (degrees) undone in the right view, when estimated.
@@ -435,6 +441,10 @@ pub(crate) fn match_grey(
             }
         }
     };
+    let textureless = stats.time("stereo.textureless", || {
+        refine::mark_textureless(cost.rows(), bases.as_deref(), k, &mut decision.confidence)
+    });
+    stats.textureless_fraction = textureless as f32 / n as f32;
     cost.recycle(workspace);
 
     if o.speckle_size > 0 {

@@ -4,6 +4,7 @@
 
 use rayon::prelude::*;
 
+use super::cost::CostRows;
 use super::options::Subpixel;
 use super::sgm::Aggregated;
 use super::simd::GreyExponentials;
@@ -42,6 +43,49 @@ pub struct DecideOptions {
     pub lr_max_diff: Option<u32>,
     /// Cost units that make `U_p` = this × paths map to confidence 0.5.
     pub confidence_unit: f32,
+}
+
+/// Sets the `confidence` of every pixel whose matching costs (`costs`, window `bases[p]..bases[p]+k`
+/// as aggregated) are the same at each disparity that lies inside the right view to 0, and
+/// returns how many. Such a pixel carries no evidence: on a textureless stretch wider than the search
+/// (or one clipped to black or white) every disparity matches equally well, and its winner is
+/// whatever aggregation carried in. On a wholly flat pair that is disparity 0 from the image's
+/// left border, where larger disparities fall outside the right view, and the uncertainty term
+/// `U_p` is 0 there, so every pixel came out at infinity with full confidence. So does a pixel
+/// with a single disparity inside the right view (the first columns), whose one candidate wins
+/// unopposed. The disparity is kept: aggregation's guess across a textureless stretch is what
+/// the smoothness term is for, and on the built-in renders treating such pixels as holes to fill
+/// made the reconstruction worse (docs/stereo-eval.md, stop 49).
+pub fn mark_textureless(
+    costs: &dyn CostRows,
+    bases: Option<&[u16]>,
+    k: usize,
+    confidence: &mut Raster<f32>,
+) -> usize {
+    let w = costs.width();
+    confidence
+        .pixels_mut()
+        .par_chunks_mut(w)
+        .enumerate()
+        .map_init(
+            || vec![0u8; w * k],
+            |row, (y, conf)| {
+                let bases = bases.map(|b| &b[y * w..(y + 1) * w]);
+                costs.row(y, bases, k, row);
+                let mut marked = 0;
+                for (x, c) in row.chunks_exact(k).enumerate() {
+                    let base = bases.map_or(0, |b| b[x] as usize);
+                    // Disparities base + i ≤ x land inside the right view.
+                    let inside = if x >= base { (x - base + 1).min(k) } else { 0 };
+                    if inside >= 1 && c[1..inside].iter().all(|&v| v == c[0]) {
+                        conf[x] = 0.0;
+                        marked += 1;
+                    }
+                }
+                marked
+            },
+        )
+        .sum()
 }
 
 /// Sub-pixel offset in [−0.5, 0.5] from the costs at d−1, d, d+1 (`c0 ≤ cm, cp`).
@@ -196,10 +240,10 @@ fn decide_row<const K: usize, const MINPOS: bool>(
         // U_p here, its confidence after the loop (divisions vectorise there, not here).
         conf[x] = bv.saturating_sub(agg.min_sum[y * w + x]) as f32;
         // Unique when every disparity not adjacent to the winner costs at least
-        // bv / (1 − uniqueness): compare the smallest of them once.
+        // bv / (1 − uniqueness), and more than bv: compare the smallest of them once.
         if opts.uniqueness > 0 && (bi >= 2 || bi + 2 < k) {
             let other = runner_up::<MINPOS>(s, bi);
-            if (other as u64) * (100 - opts.uniqueness as u64) < bv as u64 * 100 {
+            if !unique(bv, other, opts.uniqueness) {
                 st[x] = PixelState::Mismatch;
                 continue;
             }
@@ -307,6 +351,16 @@ fn winner<const MINPOS: bool>(s: &[u16]) -> (u16, usize) {
 
 /// [`min_away_from`], by [`minpos`] when `MINPOS`.
 #[inline(always)]
+/// Whether a winner of cost `best` is unique against the cheapest disparity not adjacent to it
+/// (cost `other`) at a margin of `uniqueness` percent: `other` must cost at least
+/// `best / (1 − uniqueness)`, and more than `best`. The second condition only matters at a cost
+/// of 0: on a textureless stretch every disparity matches perfectly, and a tie at 0 passed the
+/// margin alone, so a flat pair came out as disparity 0 everywhere (everything at infinity) with
+/// full confidence.
+fn unique(best: u16, other: u16, uniqueness: u32) -> bool {
+    other > best && (other as u64) * (100 - uniqueness as u64) >= best as u64 * 100
+}
+
 fn runner_up<const MINPOS: bool>(s: &[u16], winner: usize) -> u16 {
     #[cfg(target_arch = "x86_64")]
     if MINPOS {
@@ -836,6 +890,18 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_tie_is_never_unique_even_at_cost_zero() {
+        // Within the margin: 104 · 0.95 < 100; beyond it: 106 · 0.95 ≥ 100.
+        assert!(!unique(100, 104, 5));
+        assert!(unique(100, 106, 5));
+        // A tie at 0 (two disparities that both match perfectly: a repeated pattern, a flat
+        // stretch) passed the margin alone.
+        assert!(!unique(0, 0, 5));
+        assert!(unique(0, 1, 5));
+        assert!(!unique(7, 7, 1));
+    }
+
+    #[test]
     #[cfg(target_arch = "x86_64")]
     fn minpos_minima_match_the_plain_ones_with_ties_and_every_winner() {
         if !std::is_x86_feature_detected!("sse4.1") {
@@ -1064,7 +1130,7 @@ mod tests {
                     .min();
                 let unique = opts.uniqueness == 0
                     || other.is_none_or(|v| {
-                        (v as u64) * (100 - opts.uniqueness as u64) >= bv as u64 * 100
+                        v > bv && (v as u64) * (100 - opts.uniqueness as u64) >= bv as u64 * 100
                     });
                 let passes = |x: usize, d: usize, tol: u32| {
                     d <= x && right[x - d].is_some_and(|(_, dr)| dr.abs_diff(d) as u32 <= tol)

@@ -117,10 +117,14 @@ fn extreme_but_legal_pairs_give_finite_output() {
             max_disparity: 16,
             ..StereoOptions::preset(preset)
         };
-        let d = run(&flat, &flat, &o);
-        // Flat and identical: every disparity costs the same, the smallest wins.
-        assert!(d.disparity.pixels().iter().all(|&v| v == 0.0), "{preset}");
-        run(&white, &white, &o);
+        // Flat and identical: every disparity costs the same, and aggregation carries in
+        // disparity 0 from the left border; nothing was measured, so the confidence is 0.
+        for img in [&flat, &white] {
+            let d = run(img, img, &o);
+            assert!(d.disparity.pixels().iter().all(|&v| v == 0.0), "{preset}");
+            assert!(d.confidence.pixels().iter().all(|&c| c == 0.0), "{preset}");
+            assert_eq!(d.stats.textureless_fraction, 1.0, "{preset}");
+        }
         run(&noise_l, &noise_r, &o);
         // No overlap: the right view shows something else entirely.
         run(&tex, &other, &o);
@@ -156,6 +160,59 @@ fn extreme_but_legal_pairs_give_finite_output() {
     assert!(d.disparity.pixels().iter().any(|v| v.is_nan()));
     for (v, c) in d.disparity.pixels().iter().zip(d.confidence.pixels()) {
         assert!(!v.is_nan() || *c == 0.0);
+    }
+}
+
+#[test]
+fn a_stretch_with_nothing_to_match_gets_confidence_zero() {
+    // A textured pair at disparity 5 with a uniform band wider than the search across the
+    // middle of both views.
+    let (w, h) = (160, 40);
+    let band = |x: f32| (60.0..100.0).contains(&x);
+    let view = |shift: f32| {
+        gray(w, h, move |x, y| {
+            let x = x as f32 + shift;
+            if band(x) {
+                100
+            } else {
+                texture(x, y as f32)
+            }
+        })
+    };
+    let (l, r) = (view(0.0), view(5.0));
+    for preset in Preset::ALL {
+        let o = StereoOptions {
+            max_disparity: 16,
+            ..StereoOptions::preset(preset)
+        };
+        let d = run(&l, &r, &o);
+        let confident = |xs: std::ops::Range<usize>| {
+            let n = xs.len() * h;
+            let c = xs
+                .flat_map(|x| (0..h).map(move |y| (x, y)))
+                .filter(|&(x, y)| *d.confidence.get(x, y) > 0.0)
+                .count();
+            c as f32 / n as f32
+        };
+        // The band's inside, beyond the census window and the search from its edges: nothing.
+        assert_eq!(confident(75..88), 0.0, "{preset}");
+        // The texture beside it was measured.
+        assert!(
+            confident(110..150) > 0.9,
+            "{preset}: {}",
+            confident(110..150)
+        );
+        let share = d.stats.textureless_fraction;
+        assert!((0.05..0.3).contains(&share), "{preset}: {share}");
+    }
+    // A textured pair has something to match nearly everywhere, identical views included.
+    let d = run(&l, &l, &opts(16));
+    assert!(d.confidence.get(130, 20) > &0.0);
+    let tex = gray(w, h, |x, y| texture(x as f32, y as f32));
+    let shifted = gray(w, h, |x, y| texture(x as f32 + 5.0, y as f32));
+    for (a, b) in [(&tex, &tex), (&tex, &shifted)] {
+        let share = run(a, b, &opts(16)).stats.textureless_fraction;
+        assert!(share < 0.02, "{share}");
     }
 }
 

@@ -162,13 +162,14 @@ pub fn run(args: Args) -> parallax::Result<()> {
     }
     if !args.common.quiet {
         eprintln!(
-            "parallax: {}x{} matched in {:.1} ms ({} preset, disparities 0..={}), {:.1} % without an estimate before filling, {:.1} MB working memory",
+            "parallax: {}x{} matched in {:.1} ms ({} preset, disparities 0..={}), {:.1} % without an estimate before filling, {:.1} % with nothing to match, {:.1} MB working memory",
             left.width(),
             left.height(),
             result.stats.total_ms,
             preset,
             options.max_disparity,
             result.stats.invalid_fraction * 100.0,
+            result.stats.textureless_fraction * 100.0,
             result.stats.peak_working_bytes as f64 / (1024.0 * 1024.0)
         );
     }

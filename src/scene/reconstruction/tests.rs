@@ -412,3 +412,23 @@ fn mesh_normals_snap_to_the_surfaces_unless_turned_off() {
         .count();
     assert!(differ * 2 > floor_vertices.len(), "{differ} differ");
 }
+
+#[test]
+fn a_pair_with_nothing_to_match_is_warned_of_and_a_textured_one_is_not() {
+    let mut s = scene();
+    let flat = Image::from_bytes(W, H, PixelFormat::Gray8, vec![120; (W * H) as usize]).unwrap();
+    s.set_stereo_pair(&flat.view(), &flat.view()).unwrap();
+    let d = s.disparity().unwrap();
+    assert!(d.confidence.pixels().iter().all(|&c| c == 0.0));
+    let warned = |s: &Scene| {
+        s.last_trace()
+            .warnings()
+            .iter()
+            .any(|w| w.contains("nothing to match"))
+    };
+    assert!(warned(&s), "{:?}", s.last_trace().warnings());
+    let (l, r) = shifted_pair(W, H, 4);
+    s.set_stereo_pair(&l.view(), &r.view()).unwrap();
+    s.disparity().unwrap();
+    assert!(!warned(&s), "{:?}", s.last_trace().warnings());
+}
