@@ -1,7 +1,7 @@
 //! Which pixels of a depth map the matcher filled rather than measured, read from the depth's
-//! confidence (the stereo matcher's, 0 on the holes it filled, or a host's). Placement and the
-//! snapping of mesh normals both trust a plane over such depth (docs/reconstruction-eval.md,
-//! stops 47 and 48).
+//! confidence (the stereo matcher's, 0 on the holes it filled and where it had nothing to match,
+//! or a host's). Placement and the snapping of mesh normals both trust a plane over such depth
+//! (docs/reconstruction-eval.md, stops 47 and 48).
 
 use glam::Vec2;
 
