@@ -380,3 +380,48 @@ fn lights_and_composites_from_host_depth_and_a_photo_and_the_named_insertion_poi
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("X,Y,Z"));
 }
+
+#[test]
+fn a_flat_pair_fails_with_the_warning_that_says_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let flat = Image::from_bytes(64, 48, PixelFormat::Gray8, vec![90; 64 * 48]).unwrap();
+    for name in ["l.png", "r.png"] {
+        flat.save_png(dir.path().join(name)).unwrap();
+    }
+    for args in [
+        &[
+            "mesh", "--left", "l.png", "--right", "r.png", "--out", "m.ply",
+        ][..],
+        &[
+            "surfaces",
+            "--left",
+            "l.png",
+            "--right",
+            "r.png",
+            "--out-preview",
+            "s.png",
+        ],
+        &[
+            "lights", "--left", "l.png", "--right", "r.png", "--out", "l.json",
+        ],
+    ] {
+        let out = parallax()
+            .current_dir(dir.path())
+            .args(args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains("parallax: error:"), "{args:?}: {stderr}");
+        assert!(stderr.contains("nothing to match"), "{args:?}: {stderr}");
+        // Quiet keeps the error alone.
+        let quiet = parallax()
+            .current_dir(dir.path())
+            .args(args)
+            .arg("-q")
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&quiet.stderr);
+        assert!(!stderr.contains("warning"), "{args:?}: {stderr}");
+    }
+}

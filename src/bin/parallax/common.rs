@@ -20,19 +20,37 @@ pub struct CommonArgs {
 impl CommonArgs {
     /// Writes the report when `--report` was given, and prints the trace's warnings unless quiet.
     pub fn finish(&self, trace: &Trace) -> parallax::Result<()> {
-        if !self.quiet {
-            // A warning repeated by several stages of one run (each call that reuses a product
-            // reports its warnings again) is printed once.
-            let mut seen = std::collections::HashSet::new();
-            for w in trace.warnings().iter().filter(|w| seen.insert(w.as_str())) {
-                eprintln!("parallax: warning: {w}");
-            }
-        }
+        self.print_warnings(trace);
         if let Some(path) = &self.report {
             std::fs::write(path, trace.report().to_json())
                 .map_err(|e| parallax::Error::io(path, e))?;
         }
         Ok(())
+    }
+
+    /// `result`, with the warnings gathered so far printed first when it is an error: they
+    /// often say why it failed (a flat pair's "nothing to match" before "no valid depth").
+    pub fn or_warnings<T>(
+        &self,
+        trace: &Trace,
+        result: parallax::Result<T>,
+    ) -> parallax::Result<T> {
+        if result.is_err() {
+            self.print_warnings(trace);
+        }
+        result
+    }
+
+    fn print_warnings(&self, trace: &Trace) {
+        if self.quiet {
+            return;
+        }
+        // A warning repeated by several stages of one run (each call that reuses a product
+        // reports its warnings again) is printed once.
+        let mut seen = std::collections::HashSet::new();
+        for w in trace.warnings().iter().filter(|w| seen.insert(w.as_str())) {
+            eprintln!("parallax: warning: {w}");
+        }
     }
 
     /// A spinner with a message on stderr; hidden when quiet or when stderr is not a terminal.

@@ -182,13 +182,13 @@ pub fn run(args: Args) -> Result<()> {
     // matcher's confidence in the planes.
     let estimate = scene.lighting_estimate();
     absorb(&mut trace, &scene);
-    let estimate = estimate?;
+    let estimate = args.common.or_warnings(&trace, estimate)?;
     let camera = scene.camera();
     absorb(&mut trace, &scene);
-    let camera = camera?;
+    let camera = args.common.or_warnings(&trace, camera)?;
     let surfaces = scene.surfaces();
     absorb(&mut trace, &scene);
-    let surfaces = surfaces?;
+    let surfaces = args.common.or_warnings(&trace, surfaces)?;
     spinner.finish_and_clear();
     if surfaces.up_source == UpSource::CameraFallback {
         trace.warn("no near-horizontal plane found: up is the camera's +Y");

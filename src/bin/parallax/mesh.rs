@@ -71,10 +71,10 @@ pub fn run(args: Args) -> Result<()> {
     let spinner = args.common.spinner("building the scene mesh");
     let mesh = scene.mesh();
     absorb(&mut trace, &scene);
-    let mesh = mesh?;
+    let mesh = args.common.or_warnings(&trace, mesh)?;
     let camera = scene.camera();
     absorb(&mut trace, &scene);
-    let camera = camera?;
+    let camera = args.common.or_warnings(&trace, camera)?;
     spinner.finish_and_clear();
     trace.time("mesh.export", "writing --out", |_| match format.as_str() {
         "glb" => {

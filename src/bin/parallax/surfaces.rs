@@ -44,7 +44,7 @@ pub fn run(args: Args) -> Result<()> {
     let spinner = args.common.spinner("finding support surfaces");
     let depth = scene.depth();
     absorb(&mut trace, &scene);
-    let depth = depth?;
+    let depth = args.common.or_warnings(&trace, depth)?;
     // Surfaces want every pixel's point; a step keeps large photos near 0.3 MP.
     let pixels = depth.len() as f64;
     let step = (pixels / 300_000.0).sqrt().ceil().max(1.0) as u32;
@@ -58,7 +58,7 @@ pub fn run(args: Args) -> Result<()> {
     })?;
     let found = scene.surfaces();
     absorb(&mut trace, &scene);
-    let found = found?;
+    let found = args.common.or_warnings(&trace, found)?;
     spinner.finish_and_clear();
     if found.up_source == parallax::mesh::UpSource::CameraFallback {
         trace.warn("no near-horizontal plane found: up is the camera's +Y");
@@ -71,7 +71,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(path) = &args.out_preview {
         let camera = scene.camera();
         absorb(&mut trace, &scene);
-        let camera = camera?;
+        let camera = args.common.or_warnings(&trace, camera)?;
         let background = match &loaded_photo {
             Some(photo) => photo.to_linear_rgb(),
             None => grey_depth(&depth),
