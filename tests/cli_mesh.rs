@@ -388,26 +388,22 @@ fn a_flat_pair_fails_with_the_warning_that_says_why() {
     for name in ["l.png", "r.png"] {
         flat.save_png(dir.path().join(name)).unwrap();
     }
-    for args in [
-        &[
-            "mesh", "--left", "l.png", "--right", "r.png", "--out", "m.ply",
-        ][..],
-        &[
-            "surfaces",
-            "--left",
-            "l.png",
-            "--right",
-            "r.png",
-            "--out-preview",
-            "s.png",
-        ],
-        &[
-            "lights", "--left", "l.png", "--right", "r.png", "--out", "l.json",
-        ],
-    ] {
+    let mut commands = vec![
+        "mesh --out m.ply",
+        "surfaces --out-preview s.png",
+        "lights --out l.json",
+    ];
+    // Fails placing the box, before anything is rendered.
+    #[cfg(all(feature = "gpu", feature = "gltf"))]
+    commands.push("composite --insert box@32,24 --out c.png");
+    for command in commands {
+        let args: Vec<&str> = command
+            .split(' ')
+            .chain(["--left", "l.png", "--right", "r.png"])
+            .collect();
         let out = parallax()
             .current_dir(dir.path())
-            .args(args)
+            .args(&args)
             .output()
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
@@ -417,7 +413,7 @@ fn a_flat_pair_fails_with_the_warning_that_says_why() {
         // Quiet keeps the error alone.
         let quiet = parallax()
             .current_dir(dir.path())
-            .args(args)
+            .args(&args)
             .arg("-q")
             .output()
             .unwrap();

@@ -215,10 +215,14 @@ pub fn run(args: Args) -> Result<()> {
         let placed =
             scene.place_artefact(id, insert.pixel, insert.size_m, insert.yaw_deg.to_radians());
         absorb(&mut trace, &scene);
-        placed.map_err(|e| match e {
-            Error::InvalidArgument(m) => Error::invalid(format!("--insert {}: {m}", insert.what)),
-            other => other,
-        })?;
+        args.common
+            .or_warnings(&trace, placed)
+            .map_err(|e| match e {
+                Error::InvalidArgument(m) => {
+                    Error::invalid(format!("--insert {}: {m}", insert.what))
+                }
+                other => other,
+            })?;
         if i == 0 {
             // The room's light is estimated around the first object, where it will be seen.
             let centre = scene.artefact_bounds(id)?.world.center();
@@ -227,7 +231,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let composite = scene.render(&options);
     absorb(&mut trace, &scene);
-    let composite = composite?;
+    let composite = args.common.or_warnings(&trace, composite)?;
     if let Some(dir) = &args.debug_dir {
         write_debug_dir(&mut scene, &composite, dir, &mut trace)?;
     }

@@ -119,7 +119,7 @@ pub fn run(args: Args) -> Result<()> {
         };
         let placed = scene.place(pixel_of(at)?, size_m, yaw_deg.to_radians(), &options);
         absorb(&mut trace, &scene);
-        let placed = placed?;
+        let placed = args.common.or_warnings(&trace, placed)?;
         scene.set_artefact_transform(id, placed.transform)?;
         if i == 0 {
             // The room's light is estimated around the sphere on the table, where it will be seen.
@@ -129,7 +129,7 @@ pub fn run(args: Args) -> Result<()> {
 
     let composite = scene.render(&RenderOptions::default());
     absorb(&mut trace, &scene);
-    let composite = composite?;
+    let composite = args.common.or_warnings(&trace, composite)?;
     write_debug_dir(&mut scene, &composite, &args.out_dir, &mut trace)?;
     spinner.finish_and_clear();
     let report = args.out_dir.join("report.json");
