@@ -989,8 +989,9 @@ enum plx_status plx_scene_pick(struct plx_scene *scene, float x, float y, struct
 // horizontal surfaces, the surface normal elsewhere), its base on the surface (snapped to the
 // detected plane there; where stereo could not measure the depth and filled it, onto the plane
 // whose extent holds the pixel, if it passes within 25 % of the filled depth), and turned by
-// `yaw_deg` degrees about its up axis (0 = facing the camera). Errors: `NULL_ARGUMENT`; `INVALID_ARGUMENT` for a size not finite and > 0, a
-// non-finite yaw or position, no surface at that pixel, or depth that gives no mesh;
+// `yaw_deg` degrees about its up axis (0 = facing the camera). Errors: `NULL_ARGUMENT`;
+// `INVALID_ARGUMENT` for a size not finite and > 0, a non-finite yaw or position, no surface at
+// that pixel, or depth that gives no mesh;
 // `NOT_AVAILABLE` without depth.
 //
 // # Safety

@@ -641,13 +641,8 @@ fn detect(
             )));
         }
     }
-    let measured_at = |px: Vec2| {
-        confidence.is_none_or(|c| {
-            let x = (px.x.floor() as i64).clamp(0, c.width() as i64 - 1) as usize;
-            let y = (px.y.floor() as i64).clamp(0, c.height() as i64 - 1) as usize;
-            *c.get(x, y) > 0.0
-        })
-    };
+    let filled = FilledDepth::for_camera(confidence, camera);
+    let measured_at = |px: Vec2| !filled.is_some_and(|f| f.at(px));
     let n_all = mesh.positions.len();
     let stride = n_all.div_ceil(options.max_points).max(1);
     let mut points = Vec::new();

@@ -5,7 +5,7 @@
 use rayon::prelude::*;
 
 use super::buffer;
-use super::cost::{CostRows, OUTSIDE_COST};
+use super::cost::{inside_right_view, CostRows, OUTSIDE_COST};
 use crate::image::Raster;
 
 /// Census transforms of both views and the scale that maps Hamming distances onto 0–255.
@@ -189,7 +189,7 @@ fn census_row(
     for (x, (&cl, costs)) in left.iter().zip(out.chunks_exact_mut(k)).enumerate() {
         let base = bases.map_or(0, |b| b[x] as usize);
         // Disparity d = base + i matches right pixel x − d, i.e. mirrored index w − 1 − x + d.
-        let valid = if x >= base { (x - base + 1).min(k) } else { 0 };
+        let valid = inside_right_view(x, base, k);
         if valid > 0 {
             let start = w - 1 - x + base;
             let right = &mirrored[start..start + valid];

@@ -9,6 +9,17 @@
 /// A constant lets the smoothness term decide there, which the L/R check later flags anyway.
 pub const OUTSIDE_COST: u8 = 64;
 
+/// How many of left pixel `x`'s disparities `base..base + k` land inside the right view
+/// (`d ≤ x`); the others cost [`OUTSIDE_COST`].
+#[inline(always)]
+pub fn inside_right_view(x: usize, base: usize, k: usize) -> usize {
+    if x >= base {
+        (x - base + 1).min(k)
+    } else {
+        0
+    }
+}
+
 /// A matching cost that can fill one row of costs.
 pub trait CostRows: Sync {
     /// Image width in pixels.

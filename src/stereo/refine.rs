@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use super::cost::CostRows;
+use super::cost::{inside_right_view, CostRows};
 use super::options::Subpixel;
 use super::sgm::Aggregated;
 use super::simd::GreyExponentials;
@@ -45,17 +45,17 @@ pub struct DecideOptions {
     pub confidence_unit: f32,
 }
 
-/// Sets the `confidence` of every pixel whose matching costs (`costs`, window `bases[p]..bases[p]+k`
-/// as aggregated) are the same at each disparity that lies inside the right view to 0, and
-/// returns how many. Such a pixel carries no evidence: on a textureless stretch wider than the search
-/// (or one clipped to black or white) every disparity matches equally well, and its winner is
-/// whatever aggregation carried in. On a wholly flat pair that is disparity 0 from the image's
-/// left border, where larger disparities fall outside the right view, and the uncertainty term
-/// `U_p` is 0 there, so every pixel came out at infinity with full confidence. So does a pixel
-/// with a single disparity inside the right view (the first columns), whose one candidate wins
-/// unopposed. The disparity is kept: aggregation's guess across a textureless stretch is what
-/// the smoothness term is for, and on the built-in renders treating such pixels as holes to fill
-/// made the reconstruction worse (docs/stereo-eval.md, stop 49).
+/// Sets to 0 the `confidence` of every pixel whose matching costs (`costs`, window
+/// `bases[p]..bases[p]+k` as aggregated) are the same at each disparity inside the right view, and
+/// of every pixel with a single disparity inside it (the first columns, whose one candidate wins
+/// unopposed); returns how many. Such a pixel carries no evidence: on a textureless stretch wider
+/// than the search (or one clipped to black or white) every disparity matches equally well, and
+/// its winner is whatever aggregation carried in. On a wholly flat pair that was disparity 0 from
+/// the image's left border, where larger disparities fall outside the right view, with `U_p` 0,
+/// so every pixel came out at infinity with full confidence. The disparity is kept: aggregation's
+/// guess across a textureless stretch is what the smoothness term is for, and on the built-in
+/// renders treating such pixels as holes to fill made the reconstruction worse
+/// (docs/stereo-eval.md, stop 49).
 pub fn mark_textureless(
     costs: &dyn CostRows,
     bases: Option<&[u16]>,
@@ -75,8 +75,7 @@ pub fn mark_textureless(
                 let mut marked = 0;
                 for (x, c) in row.chunks_exact(k).enumerate() {
                     let base = bases.map_or(0, |b| b[x] as usize);
-                    // Disparities base + i ≤ x land inside the right view.
-                    let inside = if x >= base { (x - base + 1).min(k) } else { 0 };
+                    let inside = inside_right_view(x, base, k);
                     if inside >= 1 && c[1..inside].iter().all(|&v| v == c[0]) {
                         conf[x] = 0.0;
                         marked += 1;
@@ -227,7 +226,7 @@ fn decide_row<const K: usize, const MINPOS: bool>(
         let (bv, bi) = winner::<MINPOS>(s);
         // Right view: disparities d = base + i ≤ x only, i.e. right pixels x − base − i.
         if x >= base {
-            let valid = (x - base + 1).min(k);
+            let valid = inside_right_view(x, base, k);
             let m0 = w - 1 - (x - base);
             if valid == k {
                 // The usual case, a whole window (of constant length when K is known).
