@@ -74,9 +74,8 @@
 //! the thesis' fallback is used: one light above the scene, and [`LightFit::fallback_used`] says
 //! so, so the caller can warn.
 
-use std::cell::RefCell;
 use std::collections::HashMap;
-use std::rc::Rc;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -842,15 +841,15 @@ pub fn fit_lights(inputs: &FitInputs, in_view: &[Light], options: &FitOptions) -
 /// one [`fit_lights`] call, keyed by the candidate's cone of directions and its distance. They
 /// depend on the samples and the candidate only, not on the fixed lights beside it, so the pair's
 /// searches reuse most of the first search's visibility marches, which are most of its cost.
-/// Candidates are scored one after another (each in parallel over the samples), so a plain
-/// `RefCell` holds them.
+/// Candidates are scored in parallel; the lock is held only to look a candidate up and to store
+/// its terms, never while they are computed.
 #[derive(Default)]
 struct CandidateTerms {
-    terms: RefCell<HashMap<Vec<u32>, SampleTerms>>,
+    terms: Mutex<HashMap<Vec<u32>, SampleTerms>>,
 }
 
 /// Per sample: a candidate's light with cast shadows, without, and the facing cosine.
-type SampleTerms = Rc<Vec<(f32, f32, f32)>>;
+type SampleTerms = Arc<Vec<(f32, f32, f32)>>;
 
 impl CandidateTerms {
     /// The cached terms of the candidate, or `compute`'s, stored for the next search.
@@ -866,10 +865,13 @@ impl CandidateTerms {
             .chain(distance)
             .map(f32::to_bits)
             .collect();
-        let cached = self.terms.borrow().get(&key).cloned();
+        // The map stays whole if a thread panicked while holding the lock: entries are inserted
+        // complete.
+        let lock = || self.terms.lock().unwrap_or_else(PoisonError::into_inner);
+        let cached = lock().get(&key).cloned();
         cached.unwrap_or_else(|| {
-            let terms = Rc::new(compute());
-            self.terms.borrow_mut().insert(key, terms.clone());
+            let terms = Arc::new(compute());
+            lock().insert(key, terms.clone());
             terms
         })
     }
@@ -1242,28 +1244,39 @@ fn fit_beside(
     // closes in on the insertion point; farther, it is a direction.
     let (min_distance, max_distance) = (point_distances[0] / 2.0, point_distances[2] * 2.0);
     type Best = Option<(f64, Vec3, Option<f32>)>;
-    let consider = |best: &mut Best, d: Vec3, distance: Option<f32>| {
-        if !in_the_open(d, distance) {
-            return;
-        }
-        let score = score_candidate(&[d], distance).score;
-        if best.is_none_or(|(b, _, _)| score < b) {
-            *best = Some((score, d, distance));
+    // Candidates are scored in parallel, then taken in their order: the first of equal scores
+    // wins, as it would one after another, so the result does not depend on the threads.
+    let consider = |best: &mut Best, candidates: &[(Vec3, Option<f32>)]| {
+        let scores: Vec<Option<f64>> = candidates
+            .par_iter()
+            .map(|&(d, distance)| {
+                in_the_open(d, distance).then(|| score_candidate(&[d], distance).score)
+            })
+            .collect();
+        for (&(d, distance), score) in candidates.iter().zip(scores) {
+            if let Some(score) = score {
+                if best.is_none_or(|(b, _, _)| score < b) {
+                    *best = Some((score, d, distance));
+                }
+            }
         }
     };
     // The best direction: a coarse search over the sphere above the horizon, then one four times
     // as dense within about two coarse spacings of the best.
     let mut best_direction: Best = None;
-    for d in fibonacci(options.directions, up, -0.05) {
-        consider(&mut best_direction, d, None);
-    }
+    let directions: Vec<_> = fibonacci(options.directions, up, -0.05)
+        .into_iter()
+        .map(|d| (d, None))
+        .collect();
+    consider(&mut best_direction, &directions);
     if let Some((_, coarse, _)) = best_direction {
         let spacing = (4.0 / options.directions as f32).sqrt();
-        for d in fibonacci(options.directions * 4, up, -0.05) {
-            if d.dot(coarse) > (2.0 * spacing).cos() {
-                consider(&mut best_direction, d, None);
-            }
-        }
+        let near: Vec<_> = fibonacci(options.directions * 4, up, -0.05)
+            .into_iter()
+            .filter(|d| d.dot(coarse) > (2.0 * spacing).cos())
+            .map(|d| (d, None))
+            .collect();
+        consider(&mut best_direction, &near);
     }
     // The best position: searched more coarsely (each distance would cost as much as the whole
     // directional search otherwise), then refined by a pattern search, since a position has
@@ -1271,11 +1284,11 @@ fn fit_beside(
     // whenever none improves, get there in far fewer scores than a dense grid.
     let point_directions = options.directions / POINT_DIRECTION_DIVISOR;
     let mut best_point: Best = None;
-    for d in fibonacci(point_directions, up, -0.05) {
-        for distance in &point_distances {
-            consider(&mut best_point, d, Some(*distance));
-        }
-    }
+    let positions: Vec<_> = fibonacci(point_directions, up, -0.05)
+        .into_iter()
+        .flat_map(|d| point_distances.map(|r| (d, Some(r))))
+        .collect();
+    consider(&mut best_point, &positions);
     let mut step = (4.0 / point_directions as f32).sqrt();
     let mut factor = 1.25f32;
     for _ in 0..POINT_REFINE_MAX_ROUNDS {
@@ -1287,18 +1300,19 @@ fn fit_beside(
         };
         let (tx, ty) = tangents(d);
         let (sin, cos) = step.sin_cos();
-        for (nd, nr) in [
+        let steps: Vec<_> = [
             (d * cos + tx * sin, r),
             (d * cos - tx * sin, r),
             (d * cos + ty * sin, r),
             (d * cos - ty * sin, r),
             (d, (r * factor).min(max_distance)),
             (d, (r / factor).max(min_distance)),
-        ] {
-            if nd.dot(up) >= -0.05 {
-                consider(&mut best_point, nd.normalize(), Some(nr));
-            }
-        }
+        ]
+        .into_iter()
+        .filter(|(nd, _)| nd.dot(up) >= -0.05)
+        .map(|(nd, nr)| (nd.normalize(), Some(nr)))
+        .collect();
+        consider(&mut best_point, &steps);
         if best_point.is_some_and(|(b, _, _)| b >= score) {
             step *= 0.5;
             factor = factor.sqrt();
@@ -1330,15 +1344,21 @@ fn fit_beside(
         },
         0.0f32,
     );
-    for size_deg in [0.5f32, 4.0, 12.0, 25.0] {
-        let r = (size_deg / 2.0).to_radians();
-        let mut cone = vec![direction];
-        for k in 0..8 {
-            let a = k as f32 * std::f32::consts::TAU / 8.0;
-            let rr = r * if k % 2 == 0 { 1.0 } else { 0.6 };
-            cone.push((direction + (tx * a.cos() + ty * a.sin()) * rr.tan()).normalize());
-        }
-        let scored = score_candidate(if size_deg < 1.0 { &cone[..1] } else { &cone }, distance);
+    let sizes = [0.5f32, 4.0, 12.0, 25.0];
+    let scored_sizes: Vec<Scored> = sizes
+        .par_iter()
+        .map(|&size_deg| {
+            let r = (size_deg / 2.0).to_radians();
+            let mut cone = vec![direction];
+            for k in 0..8 {
+                let a = k as f32 * std::f32::consts::TAU / 8.0;
+                let rr = r * if k % 2 == 0 { 1.0 } else { 0.6 };
+                cone.push((direction + (tx * a.cos() + ty * a.sin()) * rr.tan()).normalize());
+            }
+            score_candidate(if size_deg < 1.0 { &cone[..1] } else { &cone }, distance)
+        })
+        .collect();
+    for (scored, size_deg) in scored_sizes.into_iter().zip(sizes) {
         if scored.score < best_size.0.score - 1e-4 {
             best_size = (scored, size_deg);
         }
@@ -1842,6 +1862,32 @@ mod tests {
             // report in docs/lights-eval.md).
             assert!(luminance(fit.main.intensity) > 0.0 && luminance(fit.ambient) > 0.0);
             assert!(fit.residual < 0.1, "{}", fit.residual);
+        }
+    }
+
+    #[test]
+    fn the_fit_does_not_depend_on_the_number_of_threads() {
+        // Candidates are scored in parallel and the first of equal scores wins: one thread and
+        // several must give the same lights to the bit. Two suns, so that the pair's searches
+        // (which reuse the first search's terms across threads) run too.
+        let r = room_lit_by(
+            &[
+                (Lit::Sun(Vec3::new(0.6, 1.0, 0.4)), 2.0),
+                (Lit::Sun(Vec3::new(-0.5, 1.0, 0.6)), 1.4),
+            ],
+            0.1,
+        );
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| fit_with_mask(&r))
+        };
+        let one = on(1);
+        assert!(!one.fallback_used, "{one:?}");
+        for threads in [3, 8] {
+            assert_eq!(on(threads), one, "{threads} threads");
         }
     }
 
