@@ -232,6 +232,80 @@ fn composite_debug_dir_holds_the_products_and_moving_nothing_recomputes_nothing(
 }
 
 #[test]
+fn a_debug_dir_that_cannot_be_written_fails_after_the_warnings_of_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    run(
+        &[
+            "synth",
+            "--quiet",
+            "--scene",
+            "room",
+            "--width",
+            "128",
+            "--spp",
+            "4",
+            "--out-dir",
+            "room",
+        ],
+        dir.path(),
+    );
+    std::fs::write(dir.path().join("blocker"), b"a file").unwrap();
+    let composite = |debug_dir: &str, report: &str| {
+        parallax()
+            .current_dir(dir.path())
+            .args([
+                "composite",
+                "--left",
+                "room/im0.png",
+                "--right",
+                "room/im1.png",
+                "--calib",
+                "room/calib.txt",
+                "--insert",
+                "box@64,74",
+                "--out",
+                "c.png",
+                "--debug-dir",
+                debug_dir,
+                "--report",
+                report,
+            ])
+            .output()
+            .unwrap()
+    };
+    // The same run with a directory it can write: the warnings it gathers.
+    let ok = composite("debug", "r.json");
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let report = json(&dir.path().join("r.json"));
+    let warnings: Vec<&str> = report["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+
+    let failed = composite("blocker/debug", "r2.json");
+    assert_eq!(failed.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert!(
+        stderr.contains("parallax: error:") && stderr.contains("blocker/debug"),
+        "{stderr}"
+    );
+    let error_at = stderr.find("parallax: error:").unwrap();
+    for warning in warnings {
+        let at = stderr.find(warning);
+        assert!(
+            at.is_some_and(|at| at < error_at),
+            "{warning:?} not before the error: {stderr}"
+        );
+    }
+}
+
+#[test]
 fn eval_composite_measures_both_input_kinds_and_writes_table_json_and_plot() {
     let dir = tempfile::tempdir().unwrap();
     run(

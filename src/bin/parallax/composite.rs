@@ -233,7 +233,8 @@ pub fn run(args: Args) -> Result<()> {
     absorb(&mut trace, &scene);
     let composite = args.common.or_warnings(&trace, composite)?;
     if let Some(dir) = &args.debug_dir {
-        write_debug_dir(&mut scene, &composite, dir, &mut trace)?;
+        let written = write_debug_dir(&mut scene, &composite, dir, &mut trace);
+        args.common.or_warnings(&trace, written)?;
     }
     spinner.finish_and_clear();
     Image::from_linear_rgb(&composite.composite).save_png(&args.out)?;

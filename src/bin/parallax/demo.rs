@@ -130,7 +130,8 @@ pub fn run(args: Args) -> Result<()> {
     let composite = scene.render(&RenderOptions::default());
     absorb(&mut trace, &scene);
     let composite = args.common.or_warnings(&trace, composite)?;
-    write_debug_dir(&mut scene, &composite, &args.out_dir, &mut trace)?;
+    let written = write_debug_dir(&mut scene, &composite, &args.out_dir, &mut trace);
+    args.common.or_warnings(&trace, written)?;
     spinner.finish_and_clear();
     let report = args.out_dir.join("report.json");
     std::fs::write(&report, trace.report().to_json()).map_err(|e| Error::io(&report, e))?;
