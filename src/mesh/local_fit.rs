@@ -65,41 +65,66 @@ pub(crate) fn inverse_depth(depth: &Raster<f32>) -> Raster<f64> {
 /// there; `√6·σ_w` standard deviation under white noise), as `1.4826 · median / √6`. Never below
 /// [`MIN_RELATIVE_NOISE`] of the median `w`. `None` when fewer than 16 triples are valid.
 pub(crate) fn inverse_depth_noise(w: &Raster<f64>, spacing: usize) -> Option<f64> {
+    let raw = second_difference_noise(w, spacing)?;
+    floored_noise(raw, noise_floor(w))
+}
+
+/// [`inverse_depth_noise`] before its floor: `None` when fewer than 16 triples are valid.
+fn second_difference_noise(w: &Raster<f64>, spacing: usize) -> Option<f64> {
     let (width, height) = (w.width(), w.height());
     let s = spacing.max(1);
-    let mut d2 = Vec::new();
-    let mut values = Vec::new();
-    for y in 0..height {
-        for x in 0..width {
-            let c = *w.get(x, y);
-            if !c.is_finite() {
-                continue;
-            }
-            values.push(c);
-            if x >= s && x + s < width {
-                let v = *w.get(x - s, y) - 2.0 * c + *w.get(x + s, y);
-                if v.is_finite() {
-                    d2.push(v.abs());
+    // Rows in parallel: the median does not depend on the order the differences come in.
+    let mut d2: Vec<f64> = (0..height)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            let mut row = Vec::new();
+            for x in 0..width {
+                let c = *w.get(x, y);
+                if !c.is_finite() {
+                    continue;
+                }
+                if x >= s && x + s < width {
+                    let v = *w.get(x - s, y) - 2.0 * c + *w.get(x + s, y);
+                    if v.is_finite() {
+                        row.push(v.abs());
+                    }
+                }
+                if y >= s && y + s < height {
+                    let v = *w.get(x, y - s) - 2.0 * c + *w.get(x, y + s);
+                    if v.is_finite() {
+                        row.push(v.abs());
+                    }
                 }
             }
-            if y >= s && y + s < height {
-                let v = *w.get(x, y - s) - 2.0 * c + *w.get(x, y + s);
-                if v.is_finite() {
-                    d2.push(v.abs());
-                }
-            }
-        }
-    }
+            row
+        })
+        .collect();
     if d2.len() < 16 {
         return None;
     }
-    let median = |v: &mut Vec<f64>| {
-        let k = v.len() / 2;
-        *v.select_nth_unstable_by(k, f64::total_cmp).1
-    };
-    let sigma = MAD_TO_SIGMA * median(&mut d2) / 6f64.sqrt();
-    let floor = MIN_RELATIVE_NOISE * median(&mut values);
-    let sigma = sigma.max(floor);
+    let k = d2.len() / 2;
+    Some(MAD_TO_SIGMA * *d2.select_nth_unstable_by(k, f64::total_cmp).1 / 6f64.sqrt())
+}
+
+/// The smallest noise assumed for `w`: [`MIN_RELATIVE_NOISE`] of its median finite value (0
+/// without one).
+fn noise_floor(w: &Raster<f64>) -> f64 {
+    let mut values: Vec<f64> = w
+        .pixels()
+        .iter()
+        .copied()
+        .filter(|c| c.is_finite())
+        .collect();
+    if values.is_empty() {
+        return 0.0;
+    }
+    let k = values.len() / 2;
+    MIN_RELATIVE_NOISE * *values.select_nth_unstable_by(k, f64::total_cmp).1
+}
+
+/// `raw` raised to `floor`; `None` unless the result is finite and positive.
+fn floored_noise(raw: f64, floor: f64) -> Option<f64> {
+    let sigma = raw.max(floor);
     (sigma.is_finite() && sigma > 0.0).then_some(sigma)
 }
 
@@ -173,10 +198,12 @@ pub(crate) struct NoiseScale {
 /// correlation length is the smallest spacing that reaches half of it. `None` as for
 /// [`inverse_depth_noise`].
 pub(crate) fn correlated_noise(w: &Raster<f64>) -> Option<NoiseScale> {
-    let mut sigma = inverse_depth_noise(w, NOISE_LADDER[0])?;
+    let floor = noise_floor(w);
+    let noise_at = |spacing| floored_noise(second_difference_noise(w, spacing)?, floor);
+    let mut sigma = noise_at(NOISE_LADDER[0])?;
     let mut ladder = vec![(NOISE_LADDER[0], sigma)];
     for &spacing in &NOISE_LADDER[1..] {
-        let Some(next) = inverse_depth_noise(w, spacing) else {
+        let Some(next) = noise_at(spacing) else {
             break;
         };
         if next > CURVATURE_RATIO * ladder[ladder.len() - 1].1 {
